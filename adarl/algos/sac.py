@@ -1,0 +1,522 @@
+"""Soft actor-critic in JAX, with AdaRL's rank-adaptive bottlenecks and the SAC-family baselines.
+
+Reads top to bottom: the config, the networks, the losses, the jitted update (and the rank
+truncation), the policy export. The environment loop, logging and checkpoints are in
+`adarl.train.sac_loop`. Every algorithm of the SAC family is a configuration of this file (see
+`adarl.algos.ALGOS`): `sac`, `adarl`, `sac-fixed-rank`, `sac-parseval`, `sac-sparse`.
+
+SAC follows Spinning Up (`spinup/algos/pytorch/sac`), which the AdaRL paper builds on:
+squashed-Gaussian actor with log-std clamped to [−20, 2], twin Q-networks with a Polyak-averaged
+target copy, the critic's target uses a fresh action from the current policy, the actor is
+updated against the just-updated critics, and there are as many gradient steps as environment
+steps (`update_every` steps, then `update_every` updates).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from adarl.errors import UsageError, check_choice
+from adarl.nets import mlp, rank
+from adarl.nets.regularisers import parseval_penalty
+from adarl.train import buffer as replay
+
+LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
+
+
+# ============================================================================ config
+@dataclass
+class SACConfig:
+    """Every hyperparameter of a SAC-family run. Defaults: the AdaRL paper's setting."""
+
+    # --- run
+    algo: str = "adarl"
+    task: str = "hopper"
+    dynamics: str = "paper"
+    seeds: tuple[int, ...] = (0,)
+    total_steps: int = 1_000_000
+    # --- SAC (paper appendix / Spinning Up)
+    hidden: tuple[int, ...] = (64, 64)
+    activation: str = "relu"
+    lr_actor: float = 3e-3
+    lr_critic: float = 3e-3
+    gamma: float = 0.99
+    polyak: float = 0.995
+    batch_size: int = 256
+    buffer_size: int = 1_000_000
+    start_steps: int = 10_000  # uniform random actions before this many steps
+    update_after: int = 1_000  # no updates before this many steps
+    update_every: int = 50  # env steps between update bursts; one update per env step overall
+    max_episode_steps: int = 1000
+    alpha: float = 0.2  # entropy coefficient (initial value when autotuned)
+    autotune_alpha: bool = False
+    target_entropy: float | None = None  # default −|A|
+    lr_alpha: float = 3e-4
+    init: str = "torch"  # torch (nn.Linear defaults) or orthogonal
+    # --- bottleneck / rank adaptation (AdaRL)
+    bottleneck: tuple[str, ...] = ()  # layers to factorise: "actor:1", "critic:1" (hidden→hidden)
+    rank: int = 0  # initial (fixed-rank: constant) rank; 0 = full width
+    adapt_rank: bool = False
+    truncate_every: int = 1_000_000  # d_t, in policy-optimisation (gradient) steps
+    beta: float = 0.98
+    rank_rule: str = "cumulative"
+    warmup_steps: int = 2000  # learning-rate warm-up after each truncation
+    lr_min_ratio: float = 0.1  # floor of the cosine decay, as a fraction of the learning rate
+    schedule_first_iteration: bool = False  # warm-up + cosine before the first truncation too
+    # --- regularisers / architectures of the baselines
+    parseval_coef: float = 0.0  # c in c·‖WWᵀ − sI‖²_F (sac-parseval)
+    parseval_scale: float = 2.0  # s
+    sparse_width: int = 0  # >0: one hidden layer this wide + a sparse-coding layer (sac-sparse)
+    sparse_eta: float = 0.1
+    sparse_lambda: float = 0.1
+    # --- evaluation, logging, checkpoints
+    eval_every: int = 10_000
+    eval_episodes: int = 5
+    eval_dynamics: tuple[str, ...] = ("nominal",)
+    log_every: int = 5_000
+    checkpoint_every: int = 50_000
+    keep_checkpoints: int = 2
+
+    def validate(self) -> SACConfig:
+        """Raise a one-line UsageError on any bad value."""
+        from adarl.algos import ALGOS
+
+        check_choice("algo", self.algo, ALGOS)
+        check_choice("activation", self.activation, mlp.ACTIVATIONS)
+        check_choice("init", self.init, mlp.INITS)
+        check_choice("rank rule", self.rank_rule, rank.RANK_RULES)
+        positive = ["total_steps", "batch_size", "buffer_size", "update_every", "max_episode_steps",
+                    "truncate_every", "eval_every", "log_every", "checkpoint_every", "eval_episodes"]
+        for name in positive:
+            if getattr(self, name) <= 0:
+                raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
+        for name in ("start_steps", "update_after", "warmup_steps", "keep_checkpoints"):
+            if getattr(self, name) < 0:
+                raise UsageError(f"{name.replace('_', '-')} must be ≥ 0, got {getattr(self, name)}")
+        if not self.seeds:
+            raise UsageError("seeds is empty; give at least one seed, e.g. --seeds 0-4")
+        if len(set(self.seeds)) != len(self.seeds):
+            raise UsageError(f"seeds contain duplicates: {list(self.seeds)}")
+        if not 0.0 < self.beta < 1.0:
+            raise UsageError(f"beta must be in (0, 1), got {self.beta}")
+        if not 0.0 <= self.polyak <= 1.0:
+            raise UsageError(f"polyak must be in [0, 1], got {self.polyak}")
+        if not 0.0 < self.gamma <= 1.0:
+            raise UsageError(f"gamma must be in (0, 1], got {self.gamma}")
+        for name in ("lr_actor", "lr_critic", "lr_alpha", "alpha"):
+            if getattr(self, name) <= 0:
+                raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
+        if not 0.0 <= self.lr_min_ratio <= 1.0:
+            raise UsageError(f"lr-min-ratio must be in [0, 1], got {self.lr_min_ratio}")
+        if not self.hidden or any(h < 1 for h in self.hidden):
+            raise UsageError(f"hidden sizes must be ≥ 1, got {list(self.hidden)}")
+        if self.sparse_width < 0:
+            raise UsageError(f"sparse-width must be ≥ 0 (0 = off), got {self.sparse_width}")
+        if self.parseval_coef < 0:
+            raise UsageError(f"parseval-coef must be ≥ 0, got {self.parseval_coef}")
+        if self.algo == "sac-parseval" and self.parseval_coef <= 0:
+            raise UsageError(f"parseval-coef must be > 0 for sac-parseval, got {self.parseval_coef}")
+        n_hidden_layers = len(self.hidden) - 1
+        for spec in self.bottleneck:
+            net, _, idx = spec.partition(":")
+            allowed = [f"{n}:{i}" for n in ("actor", "critic") for i in range(1, n_hidden_layers + 1)]
+            if net not in ("actor", "critic") or not idx.isdigit() or spec not in allowed:
+                raise UsageError(
+                    f"bottleneck layer {spec!r} does not exist; allowed: {', '.join(allowed) or 'none'}"
+                )
+        if self.bottleneck and self.sparse_width:
+            raise UsageError("bottleneck and sparse-width cannot be combined")
+        width = min(self.hidden)
+        if self.rank < 0 or self.rank > width:
+            raise UsageError(f"rank must be in 1..{width} (0 = full width), got {self.rank}")
+        if self.algo == "sac-fixed-rank" and self.rank < 1:
+            raise UsageError(f"sac-fixed-rank needs --rank in 1..{width}, got {self.rank}")
+        if self.target_entropy is not None and not np.isfinite(self.target_entropy):
+            raise UsageError(f"target-entropy must be finite, got {self.target_entropy}")
+        return self
+
+
+PRESETS: dict[str, dict] = {
+    # The AdaRL paper's appendix: (64, 64) ReLU, lr 3e-3, fixed α = 0.2, Spinning Up's schedule.
+    "paper": {},
+    # Spinning Up's own SAC defaults (its sac() signature).
+    "spinningup": {
+        "hidden": (256, 256), "lr_actor": 1e-3, "lr_critic": 1e-3, "batch_size": 100,
+        "start_steps": 10_000, "update_after": 1_000, "update_every": 50,
+    },
+    # Hopper with paper dynamics in under 15 minutes on a 2-core machine.
+    "quickstart": {
+        "task": "hopper", "dynamics": "paper", "total_steps": 150_000, "truncate_every": 30_000,
+        "start_steps": 5_000, "eval_every": 10_000, "log_every": 5_000,
+        "checkpoint_every": 25_000, "buffer_size": 200_000,
+    },
+    # tiny budgets for tests and smoke runs
+    "smoke": {
+        "total_steps": 2_000, "start_steps": 500, "update_after": 500, "update_every": 50,
+        "truncate_every": 500, "warmup_steps": 100, "eval_every": 1_000, "eval_episodes": 1,
+        "log_every": 500, "checkpoint_every": 1_000, "buffer_size": 5_000, "batch_size": 64,
+        "max_episode_steps": 200,
+    },
+}
+
+
+# ============================================================================ networks
+def actor_layout(config: SACConfig, obs_dim: int) -> tuple:
+    """Trunk of the actor: obs -> hidden… with an activation after every layer."""
+    if config.sparse_width:
+        return mlp.make_layout([obs_dim, config.sparse_width], sparse_after=0)
+    sizes = [obs_dim, *config.hidden]
+    return mlp.make_layout(sizes, _bottleneck_indices(config, "actor"))
+
+
+def critic_layout(config: SACConfig, obs_dim: int, act_dim: int) -> tuple:
+    """One Q-network: (obs, act) -> hidden… -> 1."""
+    if config.sparse_width:
+        return mlp.make_layout([obs_dim + act_dim, config.sparse_width, 1], sparse_after=0)
+    sizes = [obs_dim + act_dim, *config.hidden, 1]
+    return mlp.make_layout(sizes, _bottleneck_indices(config, "critic"))
+
+
+def _bottleneck_indices(config: SACConfig, net: str) -> tuple[int, ...]:
+    return tuple(int(s.split(":")[1]) for s in config.bottleneck if s.split(":")[0] == net)
+
+
+def bottleneck_names(config: SACConfig) -> list[str]:
+    """Names of the bottlenecks, in the order `rank_state` reports them: actor_<i>, q1_<i>, q2_<i>."""
+    names = [f"actor_{i}" for i in _bottleneck_indices(config, "actor")]
+    for q in ("q1", "q2"):
+        names += [f"{q}_{i}" for i in _bottleneck_indices(config, "critic")]
+    return names
+
+
+@dataclass(frozen=True)
+class Spec:
+    """Static facts the jitted functions close over."""
+
+    actor: tuple
+    critic: tuple
+    obs_dim: int
+    act_dim: int
+    act_low: tuple
+    act_high: tuple
+    config: SACConfig = field(compare=False)
+
+
+def make_spec(config: SACConfig, obs_dim: int, act_dim: int, low, high) -> Spec:
+    return Spec(
+        actor=actor_layout(config, obs_dim),
+        critic=critic_layout(config, obs_dim, act_dim),
+        obs_dim=obs_dim, act_dim=act_dim,
+        act_low=tuple(float(x) for x in low), act_high=tuple(float(x) for x in high),
+        config=config,
+    )
+
+
+def _initial_masks(layout: tuple, config: SACConfig) -> list:
+    return mlp.fixed_rank_masks(layout, config.rank) if config.rank else mlp.full_masks(layout)
+
+
+def init_state(spec: Spec, key: jnp.ndarray) -> dict:
+    """The complete training state of one seed (parameters, optimisers, buffer, keys, counters)."""
+    c = spec.config
+    k_actor, k_mu, k_std, k_q1, k_q2, k_state = jax.random.split(key, 6)
+    width = c.sparse_width or c.hidden[-1]
+    init_rank = c.rank or None
+    actor = {
+        "trunk": mlp.init_layers(k_actor, spec.actor, c.init, rank=init_rank),
+        # the heads are output layers: gain 1 under orthogonal init
+        "mu": mlp.init_layers(k_mu, (("dense", width, spec.act_dim),), c.init)[0],
+        "log_std": mlp.init_layers(k_std, (("dense", width, spec.act_dim),), c.init)[0],
+    }
+    q1 = mlp.init_layers(k_q1, spec.critic, c.init, rank=init_rank)
+    q2 = mlp.init_layers(k_q2, spec.critic, c.init, rank=init_rank)
+    critic = jax.tree_util.tree_map(lambda a, b: jnp.stack([a, b]), q1, q2)
+    critic_masks = [None if m is None else jnp.stack([m, m]) for m in _initial_masks(spec.critic, c)]
+    masks = {"actor": _initial_masks(spec.actor, c), "critic": critic_masks}
+    return {
+        "actor": actor,
+        "critic": critic,
+        "critic_target": critic,
+        "masks": masks,
+        "log_alpha": jnp.log(jnp.asarray(c.alpha, jnp.float32)),
+        "opt_actor": _adam().init(actor),
+        "opt_critic": _adam().init(critic),
+        "opt_alpha": _adam().init(jnp.zeros((), jnp.float32)),
+        "buffer": replay.init_buffer(c.buffer_size, spec.obs_dim, spec.act_dim),
+        "key": k_state,
+        "n_updates": jnp.zeros((), jnp.int32),
+        "iteration_start": jnp.zeros((), jnp.int32),  # update count at the last truncation
+        "n_truncations": jnp.zeros((), jnp.int32),
+    }
+
+
+def _adam():
+    # torch.optim.Adam defaults; the learning rate is applied by the update (it follows a schedule)
+    return optax.scale_by_adam(b1=0.9, b2=0.999, eps=1e-8)
+
+
+def actor_forward(spec: Spec, actor: dict, masks: list, obs: jnp.ndarray):
+    """Mean and clamped log-std of the pre-squash Gaussian."""
+    c = spec.config
+    h = mlp.apply_layers(actor["trunk"], masks, obs, spec.actor, c.activation,
+                         final_activation=True, sparse_eta=c.sparse_eta, sparse_lam=c.sparse_lambda)
+    mu = h @ actor["mu"]["w"] + actor["mu"]["b"]
+    log_std = jnp.clip(h @ actor["log_std"]["w"] + actor["log_std"]["b"], LOG_STD_MIN, LOG_STD_MAX)
+    return mu, log_std
+
+
+def squash(spec: Spec, u: jnp.ndarray) -> jnp.ndarray:
+    low, high = jnp.asarray(spec.act_low), jnp.asarray(spec.act_high)
+    return (high + low) / 2 + (high - low) / 2 * jnp.tanh(u)
+
+
+def sample_action(spec: Spec, actor, masks, obs, key):
+    """Reparameterised squashed-Gaussian sample and its log-probability (Spinning Up):
+    log π(a|s) = log N(u; μ, σ) − Σ 2(log 2 − u − softplus(−2u)), a = c + h·tanh(u)."""
+    mu, log_std = actor_forward(spec, actor, masks, obs)
+    std = jnp.exp(log_std)
+    u = mu + std * jax.random.normal(key, mu.shape)
+    logp = gaussian_log_prob(u, mu, log_std) - tanh_log_det(u)
+    return squash(spec, u), logp
+
+
+def gaussian_log_prob(u, mu, log_std):
+    """Σ_i log N(u_i; μ_i, σ_i²) over the last axis."""
+    z = (u - mu) / jnp.exp(log_std)
+    return jnp.sum(-0.5 * z**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
+
+
+def tanh_log_det(u):
+    """Σ_i log(1 − tanh²(u_i)) written stably as 2(log 2 − u − softplus(−2u))."""
+    return jnp.sum(2.0 * (jnp.log(2.0) - u - jax.nn.softplus(-2.0 * u)), axis=-1)
+
+
+def q_values(spec: Spec, critic, critic_masks, obs, act):
+    """Both Q-networks at once (their parameters are stacked on axis 0): shape (2, batch)."""
+    c = spec.config
+    x = jnp.concatenate([obs, act], axis=-1)
+
+    def one(params, masks):
+        out = mlp.apply_layers(params, masks, x, spec.critic, c.activation,
+                               sparse_eta=c.sparse_eta, sparse_lam=c.sparse_lambda)
+        return out[..., 0]
+
+    return jax.vmap(one)(critic, critic_masks)
+
+
+# ============================================================================ losses
+def critic_loss(spec: Spec, critic, state, batch, key):
+    """Σ_j mean (Q_j(s,a) − y)², y = r + γ(1−d)(min_j Q̄_j(s',ã') − α log π(ã'|s')), ã' ~ π(·|s')."""
+    c = spec.config
+    alpha = jnp.exp(state["log_alpha"])
+    next_act, next_logp = sample_action(spec, state["actor"], state["masks"]["actor"],
+                                        batch["next_obs"], key)
+    q_next = q_values(spec, state["critic_target"], state["masks"]["critic"], batch["next_obs"],
+                      next_act).min(axis=0)
+    target = batch["rew"] + c.gamma * (1.0 - batch["done"]) * (q_next - alpha * next_logp)
+    target = jax.lax.stop_gradient(target)
+    q = q_values(spec, critic, state["masks"]["critic"], batch["obs"], batch["act"])
+    loss = jnp.sum(jnp.mean((q - target[None]) ** 2, axis=1))
+    penalty = regulariser(spec, critic, stacked=True)
+    return loss + penalty, {"loss_q": loss, "q_mean": q.mean(), "penalty_critic": penalty}
+
+
+def actor_loss(spec: Spec, actor, state, batch, key):
+    """mean(α log π(ã|s) − min_j Q_j(s, ã)), ã ~ π(·|s) reparameterised."""
+    alpha = jnp.exp(state["log_alpha"])
+    act, logp = sample_action(spec, actor, state["masks"]["actor"], batch["obs"], key)
+    q = q_values(spec, state["critic"], state["masks"]["critic"], batch["obs"], act).min(axis=0)
+    loss = jnp.mean(alpha * logp - q)
+    penalty = regulariser(spec, actor["trunk"], stacked=False)
+    return loss + penalty, {"loss_pi": loss, "logp": logp, "penalty_actor": penalty}
+
+
+def alpha_loss(log_alpha, logp, target_entropy):
+    """−mean(log α · (log π + H̄)) (SAC v2 temperature loss)."""
+    return -jnp.mean(log_alpha * jax.lax.stop_gradient(logp + target_entropy))
+
+
+def regulariser(spec: Spec, layers, stacked: bool):
+    """Extra loss on a network's hidden weights; zero unless the config turns one on."""
+    c = spec.config
+    if c.parseval_coef <= 0:
+        return jnp.zeros(())
+    layout = spec.critic if stacked else spec.actor
+    if stacked:  # one penalty per Q-network, summed
+        return jnp.sum(jax.vmap(lambda p: parseval_penalty(p, layout, c))(layers))
+    return parseval_penalty(layers, layout, c)
+
+
+# ============================================================================ update
+def learning_rate(spec: Spec, state, base_lr: float):
+    """Constant before the first truncation; after each, warm-up from 0 then cosine
+    (`rank.restart_learning_rate`) over the d_t steps of the iteration."""
+    c = spec.config
+    if not c.adapt_rank:
+        return jnp.asarray(base_lr, jnp.float32)
+    t = state["n_updates"] - state["iteration_start"]
+    scheduled = rank.restart_learning_rate(t, base_lr, c.warmup_steps, c.truncate_every,
+                                           c.lr_min_ratio)
+    if c.schedule_first_iteration:
+        return scheduled
+    return jnp.where(state["n_truncations"] > 0, scheduled, base_lr)
+
+
+def update_step(spec: Spec, state: dict, _=None):
+    """One SAC gradient step on a minibatch sampled from the device buffer."""
+    c = spec.config
+    key, k_batch, k_critic, k_actor = jax.random.split(state["key"], 4)
+    batch = replay.sample(state["buffer"], k_batch, c.batch_size)
+    lr_q = learning_rate(spec, state, c.lr_critic)
+    lr_pi = learning_rate(spec, state, c.lr_actor)
+
+    (_, q_info), q_grads = jax.value_and_grad(critic_loss, argnums=1, has_aux=True)(
+        spec, state["critic"], state, batch, k_critic)
+    q_step, opt_critic = _adam().update(q_grads, state["opt_critic"])
+    critic = optax.apply_updates(state["critic"], jax.tree_util.tree_map(lambda u: -lr_q * u, q_step))
+    state = dict(state, critic=critic, opt_critic=opt_critic)
+
+    (_, pi_info), pi_grads = jax.value_and_grad(actor_loss, argnums=1, has_aux=True)(
+        spec, state["actor"], state, batch, k_actor)
+    pi_step, opt_actor = _adam().update(pi_grads, state["opt_actor"])
+    actor = optax.apply_updates(state["actor"], jax.tree_util.tree_map(lambda u: -lr_pi * u, pi_step))
+
+    logp = pi_info.pop("logp")
+    log_alpha, opt_alpha = state["log_alpha"], state["opt_alpha"]
+    if c.autotune_alpha:
+        target_entropy = -spec.act_dim if c.target_entropy is None else c.target_entropy
+        a_grad = jax.grad(alpha_loss)(log_alpha, logp, target_entropy)
+        a_step, opt_alpha = _adam().update(a_grad, opt_alpha)
+        log_alpha = log_alpha - c.lr_alpha * a_step
+
+    target = jax.tree_util.tree_map(
+        lambda t, o: c.polyak * t + (1.0 - c.polyak) * o, state["critic_target"], critic)
+    state = dict(state, actor=actor, opt_actor=opt_actor, critic_target=target,
+                 log_alpha=log_alpha, opt_alpha=opt_alpha, key=key,
+                 n_updates=state["n_updates"] + 1)
+    info = {**q_info, **pi_info, "alpha": jnp.exp(log_alpha), "entropy": -logp.mean(), "lr": lr_pi}
+    return state, info
+
+
+def append_and_update(spec: Spec, state: dict, rows: dict, n_rows, n_updates: int):
+    """Append a chunk of rows to the buffer, then run `n_updates` gradient steps (lax.scan).
+    Returns the new state and the metrics averaged over the steps."""
+    state = dict(state, buffer=replay.append_rows(state["buffer"], rows, n_rows))
+    if n_updates == 0:
+        return state, {}
+    state, infos = jax.lax.scan(lambda s, x: update_step(spec, s, x), state, None, length=n_updates)
+    return state, jax.tree_util.tree_map(jnp.mean, infos)
+
+
+def act(spec: Spec, actor, masks, obs, key, deterministic: bool = False):
+    """Action for one observation (exploration sample, or tanh(μ) when deterministic)."""
+    if deterministic:
+        mu, _ = actor_forward(spec, actor, masks, obs)
+        return squash(spec, mu)
+    action, _ = sample_action(spec, actor, masks, obs, key)
+    return action
+
+
+# ============================================================================ rank adaptation
+def truncate(spec: Spec, state: dict):
+    """AdaRL's rank-adaptation step on every bottleneck of actor and critics (one seed).
+
+    Each bottleneck is re-parameterised by `rank.truncate_bottleneck` (SVD, rank rule,
+    W1 = U_r√Σ_r, W2 = √Σ_r V_rᵀ). The target critics become a copy of the truncated critics
+    (as Spinning Up builds its target: a deep copy), so target and online networks have the same
+    shapes and ranks. Adam states are reset and the learning-rate schedule restarts; everything
+    else (replay buffer, α, counters) carries over (warm start).
+    Returns the new state and, per bottleneck, its spectrum and proposed/new rank.
+    """
+    c = spec.config
+    report = {}
+    actor_trunk = list(state["actor"]["trunk"])
+    actor_masks = list(state["masks"]["actor"])
+    for i, layer in enumerate(spec.actor):
+        if layer[0] != "bottleneck":
+            continue
+        p = actor_trunk[i]
+        w1, w2, m, s, proposed = rank.truncate_bottleneck(p["w1"], p["w2"], actor_masks[i],
+                                                          c.beta, c.rank_rule)
+        actor_trunk[i], actor_masks[i] = dict(p, w1=w1, w2=w2), m
+        report[f"actor_{i}"] = (s, proposed, m.sum().astype(jnp.int32))
+    critic = list(state["critic"])
+    critic_masks = list(state["masks"]["critic"])
+    for i, layer in enumerate(spec.critic):
+        if layer[0] != "bottleneck":
+            continue
+        p = critic[i]
+        trunc = jax.vmap(lambda a, b, m: rank.truncate_bottleneck(a, b, m, c.beta, c.rank_rule))
+        w1, w2, m, s, proposed = trunc(p["w1"], p["w2"], critic_masks[i])
+        critic[i], critic_masks[i] = dict(p, w1=w1, w2=w2), m
+        for q in range(2):
+            report[f"q{q + 1}_{i}"] = (s[q], proposed[q], m[q].sum().astype(jnp.int32))
+    actor = dict(state["actor"], trunk=actor_trunk)
+    state = dict(
+        state,
+        actor=actor, critic=critic, critic_target=critic,
+        masks={"actor": actor_masks, "critic": critic_masks},
+        opt_actor=_adam().init(actor), opt_critic=_adam().init(critic),
+        iteration_start=state["n_updates"], n_truncations=state["n_truncations"] + 1,
+    )
+    return state, report
+
+
+def rank_state(spec: Spec, state: dict) -> dict[str, jnp.ndarray]:
+    """Current rank of every bottleneck, keyed like `bottleneck_names`."""
+    out = {}
+    for i, layer in enumerate(spec.actor):
+        if layer[0] == "bottleneck":
+            out[f"actor_{i}"] = state["masks"]["actor"][i].sum().astype(jnp.int32)
+    for i, layer in enumerate(spec.critic):
+        if layer[0] == "bottleneck":
+            for q in range(2):
+                out[f"q{q + 1}_{i}"] = state["masks"]["critic"][i][q].sum().astype(jnp.int32)
+    return out
+
+
+# ============================================================================ export
+def export_policy(spec: Spec, actor: dict, masks: list) -> dict[str, np.ndarray]:
+    """The deterministic policy of one seed in the `adarl.policy` file format; bottleneck
+    factors are cut to their rank, so the file holds the compressed network."""
+    c = spec.config
+    out = {"format": np.array("adarl-policy-1"), "activation": np.array(c.activation),
+           "n_layers": np.array(len(spec.actor)), "squash": np.array("tanh"),
+           "action_low": np.asarray(spec.act_low, np.float32),
+           "action_high": np.asarray(spec.act_high, np.float32)}
+    n_full = 0
+    for i, (layer, p) in enumerate(zip(spec.actor, actor["trunk"])):
+        p = {k: np.asarray(v) for k, v in p.items()}
+        out[f"l{i}_kind"] = np.array(layer[0])
+        if layer[0] == "dense":
+            out[f"l{i}_w"], out[f"l{i}_b"] = p["w"], p["b"]
+            n_full += p["w"].size + p["b"].size
+        elif layer[0] == "bottleneck":
+            r = int(np.asarray(masks[i]).sum())
+            out[f"l{i}_w1"], out[f"l{i}_w2"], out[f"l{i}_b"] = p["w1"][:, :r], p["w2"][:r], p["b"]
+            n_full += p["w1"].size + p["w2"].size + p["b"].size
+        else:
+            out[f"l{i}_d"] = p["d"]
+            out[f"l{i}_eta"], out[f"l{i}_lam"] = np.array(c.sparse_eta), np.array(c.sparse_lambda)
+            n_full += p["d"].size
+    out["mean_w"] = np.asarray(actor["mu"]["w"])
+    out["mean_b"] = np.asarray(actor["mu"]["b"])
+    n_full += out["mean_w"].size + out["mean_b"].size
+    out["n_params_full"] = np.array(n_full)
+    return out
+
+
+def config_from_dict(values: dict) -> SACConfig:
+    """Build a config from plain values (YAML / CLI), converting lists to tuples."""
+    names = {f.name for f in dataclasses.fields(SACConfig)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise UsageError(f"unknown config field {unknown[0]!r} for the SAC family")
+    fixed = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+    return SACConfig(**fixed)

@@ -1,0 +1,1 @@
+"""Command-line interface: `adarl <command>`; each command lives in its own module here."""

@@ -1,0 +1,73 @@
+"""`adarl` entry point.
+
+Each command is a module in `adarl.cli` exposing `HELP` (one line), `add_arguments(parser)` and
+`run(args) -> int`. Modules keep heavy imports (JAX, MuJoCo) inside `run` so `adarl --help` is fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from adarl import __version__
+from adarl.errors import UsageError
+
+COMMANDS = {
+    "train": "adarl.cli.train",
+    "tasks": "adarl.cli.tasks",
+    "ranks": "adarl.cli.ranks",
+    "evaluate": "adarl.cli.evaluate",
+    "report": "adarl.cli.report",
+    "play": "adarl.cli.play",
+    "export": "adarl.cli.export",
+    "sweep": "adarl.cli.sweep",
+    "theory": "adarl.cli.theory",
+}
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse parser whose errors are a single line on stderr and exit code 2."""
+
+    def error(self, message):  # noqa: D102
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(
+        prog="adarl",
+        description="AdaRL: rank-adaptive SAC for robust RL under model uncertainty.",
+    )
+    parser.add_argument("--version", action="version", version=f"adarl {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
+    for name, module_name in COMMANDS.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name != module_name:
+                raise
+            continue  # command not built yet
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args._run(args) or 0)
+    except UsageError as exc:
+        print(f"adarl {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"adarl {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

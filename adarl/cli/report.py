@@ -1,0 +1,52 @@
+"""`adarl report RUN_DIR… --out REPORT_DIR`: tables, statistics and figures for any set of run
+folders (several algorithms, tasks, seeds; a sweep's output folder works as it is).
+
+See docs/evaluation.md for what each table and figure shows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+
+HELP = "write tables, rliable statistics and figures for a set of runs into one report folder"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "run_dirs", nargs="+", metavar="RUN_DIR", help="run folders, or folders holding them"
+    )
+    parser.add_argument("--out", required=True, metavar="REPORT_DIR", help="report folder")
+    parser.add_argument(
+        "--bootstrap-reps", type=int, default=10_000, help="bootstrap resamples (default 10000)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
+    parser.add_argument(
+        "--skip-incomplete", action="store_true",
+        help="leave out runs without a complete checkpoint instead of failing",
+    )  # fmt: skip
+
+
+def command_line(args: argparse.Namespace) -> str:
+    parts = ["adarl", "report", *args.run_dirs, "--out", args.out]
+    if args.bootstrap_reps != 10_000:
+        parts += ["--bootstrap-reps", str(args.bootstrap_reps)]
+    if args.seed:
+        parts += ["--seed", str(args.seed)]
+    if args.skip_incomplete:
+        parts.append("--skip-incomplete")
+    return shlex.join(parts)
+
+
+def run(args: argparse.Namespace) -> int:
+    from adarl.evaluation.report import ReportOptions, build_report
+
+    options = ReportOptions(
+        bootstrap_reps=args.bootstrap_reps,
+        seed=args.seed,
+        skip_incomplete=args.skip_incomplete,
+        command=command_line(args),
+    )
+    out = build_report(args.run_dirs, args.out, options)
+    print(f"report written to {out}/index.md")
+    return 0

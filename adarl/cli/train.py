@@ -1,0 +1,194 @@
+"""`adarl train`: train any algorithm on any task, several seeds in one process, or resume a run."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import shlex
+import sys
+import time
+import typing
+from pathlib import Path
+
+from adarl.errors import UsageError, check_choice
+
+HELP = "train an algorithm (AdaRL, SAC baselines, RNAC) on a task, or resume a run"
+RUN_FLAGS = ("algo", "task", "dynamics", "seeds", "total_steps")
+
+
+def _config_classes():
+    from adarl.algos import rnac, sac
+
+    return {"sac": sac.SACConfig, "rnac": rnac.RNACConfig}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = (
+        "examples:\n"
+        "  adarl train --preset quickstart\n"
+        "  adarl train --algo adarl --task walker2d --seeds 0-4 --truncate-every 700000\n"
+        "  adarl train --algo sac-fixed-rank --rank 7 --task hopper\n"
+        "  adarl train --resume runs/hopper-adarl-20261121-120000\n"
+        "Every config field is a flag (--field-name VALUE); tuples take commas (--seeds 0,2,4 or 0-4)."
+    )
+    parser.add_argument("--algo", default="adarl",
+                        help="adarl, sac, sac-fixed-rank, sac-parseval, sac-sparse, rnac")
+    parser.add_argument("--preset", default=None,
+                        help="named settings applied before the flags (e.g. paper, quickstart, smoke)")
+    parser.add_argument("--out", default=None, help="run folder (default runs/<task>-<algo>-<time>)")
+    parser.add_argument("--resume", default=None, metavar="RUN_DIR",
+                        help="continue a run from its newest complete checkpoint")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    seen = {"algo"}
+    for family, cls in _config_classes().items():
+        group = parser.add_argument_group(f"{family.upper()}-family config fields")
+        for f in dataclasses.fields(cls):
+            if f.name in seen:
+                continue
+            seen.add(f.name)
+            group.add_argument(f"--{f.name.replace('_', '-')}", dest=f"cfg_{f.name}", default=None,
+                               metavar=_metavar(f), help=f"default: {_default_text(f)}")
+
+
+def _metavar(f) -> str:
+    return str(f.type).replace("typing.", "").upper().split("[")[0].replace(" | NONE", "")
+
+
+def _default_text(f) -> str:
+    value = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+    return ",".join(map(str, value)) if isinstance(value, tuple) else str(value)
+
+
+def parse_value(name: str, text: str, type_text: str):
+    """Convert a flag's text to the field's type (`int`, `float`, `bool`, tuples, optionals)."""
+    t = type_text.replace(" ", "")
+    flag = "--" + name.replace("_", "-")
+    if t.endswith("|None") and text.lower() in ("none", ""):
+        return None
+    t = t.removesuffix("|None")
+    try:
+        if t == "int":
+            return int(text)
+        if t == "float":
+            return float(text)
+        if t == "bool":
+            lowered = text.lower()
+            if lowered not in ("true", "false", "1", "0", "yes", "no"):
+                raise ValueError
+            return lowered in ("true", "1", "yes")
+        if t == "str":
+            return text
+        if t == "tuple[int,...]":
+            return parse_int_list(text)
+        if t == "tuple[str,...]":
+            return tuple(s for s in text.split(",") if s)
+    except ValueError:
+        raise UsageError(f"{flag} expects {t}, got {text!r}") from None
+    raise UsageError(f"{flag}: unsupported field type {t}")
+
+
+def parse_int_list(text: str) -> tuple[int, ...]:
+    """'0-4' -> (0, 1, 2, 3, 4); '0,2,5' -> (0, 2, 5); ranges and lists mix ('0-2,7')."""
+    out: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        lo, dash, hi = part.partition("-")
+        if dash and lo:
+            a, b = int(lo), int(hi)
+            if b < a:
+                raise ValueError
+            out.extend(range(a, b + 1))
+        else:
+            out.append(int(part))
+    if not out:
+        raise ValueError
+    return tuple(out)
+
+
+def build_config(args: argparse.Namespace):
+    """defaults <- the algorithm's definition <- --preset <- flags; returns (family, config)."""
+    from adarl.algos import ALGOS, SAC_FAMILY
+
+    algo = check_choice("algo", args.algo, ALGOS)
+    family = "rnac" if algo == "rnac" else "sac"
+    cls = _config_classes()[family]
+    module = _algo_module(family)
+    values: dict = {"algo": algo} if family == "sac" else {}
+    if family == "sac":
+        values.update(SAC_FAMILY[algo])
+    preset = args.preset or ("paper" if family == "sac" else "default")
+    check_choice(f"preset for {algo}", preset, module.PRESETS)
+    values.update(module.PRESETS[preset])
+    hints = typing.get_type_hints(cls)
+    fields = {f.name for f in dataclasses.fields(cls)}
+    for key, text in vars(args).items():
+        if not key.startswith("cfg_") or text is None:
+            continue
+        name = key[4:]
+        if name not in fields:
+            raise UsageError(f"--{name.replace('_', '-')} does not apply to --algo {algo}")
+        values[name] = parse_value(name, text, _type_text(hints[name]))
+    values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+    return family, cls(**values).validate()
+
+
+def _type_text(hint) -> str:
+    text = str(hint) if not isinstance(hint, type) else hint.__name__
+    return text.replace("typing.", "").replace("Optional[", "").replace("NoneType", "None")
+
+
+def _algo_module(family: str):
+    if family == "rnac":
+        from adarl.algos import rnac
+
+        return rnac
+    from adarl.algos import sac
+
+    return sac
+
+
+def _trainer(family: str):
+    if family == "rnac":
+        from adarl.algos.rnac import train
+
+        return lambda config, run_dir, resume, progress, command: train(config, run_dir, resume)
+    from adarl.train.sac_loop import train
+
+    return train
+
+
+def config_from_run(run_dir: Path):
+    """The config a run folder was started with (for --resume)."""
+    from adarl.train.sac_loop import load_run_config
+
+    values = load_run_config(run_dir)
+    algo = values.get("algo", "rnac")
+    family = "rnac" if algo == "rnac" else "sac"
+    cls = _config_classes()[family]
+    names = {f.name for f in dataclasses.fields(cls)}
+    kept = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in names}
+    return family, cls(**kept).validate()
+
+
+def run(args: argparse.Namespace) -> int:
+    command = "adarl train " + shlex.join(sys.argv[2:]) if len(sys.argv) > 1 else "adarl train"
+    if args.resume:
+        given = [k[4:] for k, v in vars(args).items() if k.startswith("cfg_") and v is not None]
+        if given or args.preset or args.out:
+            extra = given[0].replace("_", "-") if given else ("preset" if args.preset else "out")
+            raise UsageError(f"--resume continues a run with its own settings; drop --{extra}")
+        run_dir = Path(args.resume)
+        family, config = config_from_run(run_dir)
+        _trainer(family)(config, run_dir, True, not args.no_progress, command)
+        print(f"run folder: {run_dir}")
+        return 0
+    family, config = build_config(args)
+    task = getattr(config, "task", "task")
+    run_dir = Path(args.out) if args.out else Path("runs") / (
+        f"{task}-{args.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+    _trainer(family)(config, run_dir, False, not args.no_progress, command)
+    print(f"run folder: {run_dir}")
+    return 0

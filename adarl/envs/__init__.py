@@ -1,0 +1,34 @@
+"""MuJoCo tasks with uncertain, episode-varying dynamics (Hopper, Walker2d, Ant, Humanoid).
+
+    env = make("hopper", dynamics="paper", seed=0)
+    obs, info = env.reset()          # info["dynamics"], info["episode_index"]
+
+Task facts and schedules import without MuJoCo; `make`/`make_vec` load it on first use.
+"""
+
+from adarl.envs.dynamics import DynamicsSchedule, parse_dynamics
+from adarl.envs.params import PARAMS, Sinusoid
+from adarl.envs.tasks import TaskSpec, get_task, list_tasks
+
+__all__ = [
+    "PARAMS",
+    "DynamicsEnv",
+    "DynamicsSchedule",
+    "Sinusoid",
+    "TaskSpec",
+    "get_task",
+    "list_tasks",
+    "make",
+    "make_vec",
+    "parse_dynamics",
+]
+
+_LAZY = {"make", "make_vec", "DynamicsEnv"}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        from adarl.envs import env
+
+        return getattr(env, name)
+    raise AttributeError(f"module 'adarl.envs' has no attribute {name!r}")

@@ -1,0 +1,198 @@
+"""Dynamics schedules: the physical parameters of each episode, as a function of its index i.
+
+A schedule names every parameter of its task. Parameters with a `Sinusoid` vary with the episode
+index (``c + a·sin(f·i)``, or, in `uniform` mode, a uniform draw from ``[c - |a|, c + |a|]``); the
+others are constants. Modes by name (see `parse_dynamics`):
+
+  paper     the AdaRL appendix formulas            ompo     same, Hopper amplitudes 0.1 (OMPO code)
+  nominal   the centroid c of each formula         uniform  per-episode draws over the paper's ranges
+  fixed     user values, e.g. fixed:torso_length=0.5,foot_length=0.39 (others at Gymnasium defaults)
+  default   Gymnasium's own model, untouched (no recompile, no air for Ant/Humanoid)
+
+Any mode but `default` takes overrides after a colon: ``paper:mass_scale=1.2``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adarl.envs.params import PARAMS, Sinusoid
+from adarl.envs.tasks import get_task
+from adarl.errors import UsageError, check_choice
+
+#: Schedule names `parse_dynamics` understands.
+KINDS = ("paper", "ompo", "nominal", "uniform", "fixed", "default")
+#: How a schedule turns its sinusoids into values.
+MODES = ("sinusoid", "uniform", "default")
+_SYNTAX = "paper, ompo, nominal, uniform, default, fixed:NAME=VALUE[,NAME=VALUE...]"
+
+
+@dataclass(frozen=True)
+class DynamicsSchedule:
+    """Episode index -> physical parameters of one task.
+
+    Build one by name with `parse_dynamics`, or in code, e.g.
+    ``DynamicsSchedule("hopper", sinusoids={"torso_length": Sinusoid(0.4, 0.1, 0.2)})``;
+    constants left out take the task's Gymnasium defaults.
+    """
+
+    task: str
+    name: str = "custom"
+    constants: Mapping[str, float] = field(default_factory=dict)
+    sinusoids: Mapping[str, Sinusoid] = field(default_factory=dict)
+    mode: str = "sinusoid"
+
+    def __post_init__(self):
+        spec = get_task(self.task)
+        check_choice("dynamics mode", self.mode, MODES)
+        for name in (*self.constants, *self.sinusoids):
+            _check_name(spec, name)
+        both = set(self.constants) & set(self.sinusoids)
+        if both:
+            raise UsageError(
+                f"parameter {sorted(both)[0]!r} is both constant and varying; allowed: one of the two"
+            )
+        for name, s in self.sinusoids.items():
+            if not isinstance(s, Sinusoid):
+                raise UsageError(f"bad varying value {s!r} for {name}; allowed: a Sinusoid")
+            PARAMS[name].check(s.low), PARAMS[name].check(s.high)
+        constants = {
+            p: PARAMS[p].check(self.constants.get(p, default))
+            for p, default in spec.params.items()
+            if p not in self.sinusoids
+        }
+        if self.mode == "default" and (self.sinusoids or constants != dict(spec.params)):
+            raise _default_takes_no_values("default")
+        object.__setattr__(self, "task", spec.name)
+        object.__setattr__(self, "constants", constants)
+        object.__setattr__(self, "sinusoids", {p: self.sinusoids[p] for p in spec.params if p in self.sinusoids})
+        object.__setattr__(self, "_order", tuple(spec.params))
+
+    @property
+    def varies(self) -> bool:
+        """Whether the parameters change from episode to episode."""
+        return bool(self.sinusoids)
+
+    @property
+    def needs_rng(self) -> bool:
+        """Whether `params_for_episode` draws random numbers (uniform mode)."""
+        return self.mode == "uniform" and self.varies
+
+    def params_for_episode(self, i: int, rng: np.random.Generator | None = None) -> dict[str, float]:
+        """Parameters of episode `i` (>= 0): ``c + a·sin(f·i)`` per varying parameter, or in
+        uniform mode one ``rng.uniform(c - |a|, c + |a|)`` draw each (rng=None: ``default_rng([0, i])``)."""
+        if isinstance(i, bool) or not isinstance(i, int | np.integer) or i < 0:
+            raise UsageError(f"bad episode index {i!r}; allowed: an integer >= 0")
+        if self.needs_rng:
+            rng = np.random.default_rng([0, int(i)]) if rng is None else rng
+            varied = {p: float(rng.uniform(s.low, s.high)) for p, s in self.sinusoids.items()}
+        else:
+            varied = {p: s(i) for p, s in self.sinusoids.items()}
+        return {p: varied[p] if p in varied else self.constants[p] for p in self._order}
+
+    def centroid(self) -> dict[str, float]:
+        """The nominal parameters: each sinusoid's centre c, constants as they are."""
+        return {p: self.sinusoids[p].center if p in self.sinusoids else self.constants[p] for p in self._order}
+
+    def ranges(self) -> dict[str, tuple[float, float]]:
+        """(low, high) each parameter takes: ``c ∓ |a|`` for varying ones, (v, v) for constants."""
+        return {
+            p: (self.sinusoids[p].low, self.sinusoids[p].high) if p in self.sinusoids else (self.constants[p],) * 2
+            for p in self._order
+        }
+
+    def formulas(self) -> dict[str, str]:
+        """Each parameter as text: a formula, a uniform range, or a constant."""
+        out = {}
+        for p in self._order:
+            s = self.sinusoids.get(p)
+            if s is None:
+                out[p] = f"{self.constants[p]:g}"
+            elif self.mode == "uniform":
+                out[p] = f"U[{s.low:g}, {s.high:g}]"
+            else:
+                out[p] = s.formula()
+        return out
+
+    def with_overrides(self, **values: float) -> DynamicsSchedule:
+        """A copy with `values` fixed on top (their sinusoids dropped); the name records them."""
+        if not values:
+            return self
+        if self.mode == "default":
+            raise _default_takes_no_values(f"{self.name} with {', '.join(values)}")
+        spec = get_task(self.task)
+        for name in values:
+            _check_name(spec, name)
+        values = {k: PARAMS[k].check(v) for k, v in values.items()}
+        suffix = ",".join(f"{k}={v!r}" for k, v in values.items())
+        return DynamicsSchedule(
+            task=self.task,
+            name=f"{self.name}{',' if ':' in self.name else ':'}{suffix}",
+            constants={**self.constants, **values},
+            sinusoids={p: s for p, s in self.sinusoids.items() if p not in values},
+            mode=self.mode,
+        )
+
+
+def parse_dynamics(text: str | DynamicsSchedule, task: str) -> DynamicsSchedule:
+    """Schedule for `task` from a name: paper, ompo, nominal, uniform, default, or
+    ``fixed:NAME=VALUE,...``; every name but default accepts ``:NAME=VALUE,...`` overrides."""
+    spec = get_task(task)
+    if isinstance(text, DynamicsSchedule):
+        if text.task != spec.name:
+            raise UsageError(
+                f"dynamics schedule is for task {text.task!r}; allowed: a schedule for {spec.name!r}"
+            )
+        return text
+    if not isinstance(text, str):
+        raise UsageError(f"unknown dynamics {text!r}; allowed: {_SYNTAX}")
+    head, colon, tail = text.strip().partition(":")
+    kind = head.strip().lower()
+    if kind not in KINDS:
+        raise UsageError(f"unknown dynamics {text!r}; allowed: {_SYNTAX}")
+    values = _parse_values(text, kind, tail, spec) if colon else {}
+    if kind == "default":
+        return DynamicsSchedule(spec.name, name="default", mode="default")
+    paper = spec.schedules["paper"]
+    base = {
+        "paper": DynamicsSchedule(spec.name, "paper", sinusoids=paper),
+        "ompo": DynamicsSchedule(spec.name, "ompo", sinusoids=spec.schedules["ompo"]),
+        "nominal": DynamicsSchedule(spec.name, "nominal", constants={p: s.center for p, s in paper.items()}),
+        "uniform": DynamicsSchedule(spec.name, "uniform", sinusoids=paper, mode="uniform"),
+        "fixed": DynamicsSchedule(spec.name, "fixed"),
+    }[kind]
+    return base.with_overrides(**values)
+
+
+def _default_takes_no_values(what: str) -> UsageError:
+    return UsageError(
+        f"bad dynamics {what!r}: 'default' keeps Gymnasium's model untouched and takes no values; "
+        "allowed: fixed:NAME=VALUE[,NAME=VALUE...] to set parameters"
+    )
+
+
+def _check_name(spec, name: str) -> None:
+    if name not in spec.params:
+        raise UsageError(f"unknown {spec.name} parameter {name!r}; allowed: {', '.join(spec.params)}")
+
+
+def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
+    """``NAME=VALUE,NAME=VALUE`` -> {NAME: VALUE}, with one-line errors."""
+    if kind == "default":
+        raise _default_takes_no_values(text)
+    values: dict[str, float] = {}
+    for item in tail.split(","):
+        name, eq, value = (part.strip() for part in item.partition("="))
+        if not eq or not name or not value:
+            raise UsageError(
+                f"malformed dynamics {text!r} (at {item.strip()!r}); allowed: "
+                f"{kind}:NAME=VALUE[,NAME=VALUE...] with NAME one of {', '.join(spec.params)}"
+            )
+        _check_name(spec, name)
+        if name in values:
+            raise UsageError(f"parameter {name!r} given twice in dynamics {text!r}; allowed: once each")
+        values[name] = PARAMS[name].check(value)
+    return values

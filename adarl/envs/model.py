@@ -1,0 +1,192 @@
+"""Compile a task's MuJoCo model at given physical parameters, by editing an `mujoco.MjSpec`.
+
+Recompiling (rather than editing a compiled model's `geom_size`) makes masses, inertias and the
+contact bounding radii `geom_rbound` follow the geometry. One `ModelBuilder` keeps one spec of
+Gymnasium's XML and writes every edited field absolutely from a snapshot of the original values,
+so the same spec serves every episode. A parameter at its Gymnasium default leaves its fields at
+the XML's own values, so the defaults compile to Gymnasium's model bit for bit.
+
+Geometry (Hopper, Walker2d; OMPO's construction, lengths are capsule half-lengths):
+  torso half-length L: torso centre at hip + L (hip height 1.05 stays), torso capsule half-length L,
+      every thigh body (both legs on Walker2d) at -L below the torso centre; the root slide joints
+      stay at the world origin and rootz keeps ref 1.25, so qpos[1] = 1.25 means "as at reset".
+  foot half-length F: every foot capsule's half-length is F about its unchanged centre.
+Physics: gravity g -> opt.gravity = (0, 0, -g); wind W -> opt.wind = (-W, 0, 0); Ant/Humanoid get
+air (density 1.2, viscosity 2e-5); mass_scale multiplies every geom density (hence body masses and
+inertias); friction_scale every geom friction; damping_scale every joint damping; stiffness sets the
+task's stiffened joints' stiffness with the task's spring reference.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from gymnasium.envs.mujoco.mujoco_env import expand_model_path
+
+from adarl.envs.tasks import TaskSpec, get_task
+
+#: Gymnasium's XML file of each task (its v5 env class default).
+XML_FILES = {
+    "hopper": "hopper.xml",
+    "walker2d": "walker2d_v5.xml",
+    "ant": "ant.xml",
+    "humanoid": "humanoid.xml",
+}
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Named elements of a planar legged robot whose torso and feet change length."""
+
+    torso_body: str
+    torso_geom: str
+    hip_bodies: tuple[str, ...]  # bodies hanging from the torso's lower end
+    root_slides: tuple[str, ...]  # slide joints anchored at the world origin
+    foot_geoms: tuple[str, ...]
+
+
+LAYOUTS = {
+    "hopper": Layout("torso", "torso_geom", ("thigh",), ("rootx", "rootz"), ("foot_geom",)),
+    "walker2d": Layout(
+        "torso",
+        "torso_geom",
+        ("thigh", "thigh_left"),
+        ("rootx", "rootz"),
+        ("foot_geom", "foot_left_geom"),
+    ),
+}
+
+
+class ModelBuilder:
+    """Compiles `MjModel`s of one task at any parameters (about 0.5 ms each without textures)."""
+
+    def __init__(self, task: str | TaskSpec, xml_path: str | None = None, textures: bool = True):
+        """`textures=False` drops the (visual-only, slow to generate) textures: use it when the
+        model is never rendered."""
+        self.task = task if isinstance(task, TaskSpec) else get_task(task)
+        self.spec = mujoco.MjSpec.from_file(xml_path or expand_model_path(XML_FILES[self.task.name]))
+        if not textures:
+            _strip_textures(self.spec)
+        self._base = _Snapshot(self.spec, self.task)
+        self._applied: dict[str, float] | None = None  # what self.spec holds now
+
+    def compile(self, params: dict[str, float]) -> mujoco.MjModel:
+        """A new model at `params` (the task's full parameter dict)."""
+        previous, self._applied = self._applied, None  # unknown if anything below fails
+        apply_params(self.spec, self.task, params, self._base, previous)
+        model = self.spec.compile()
+        self._applied = dict(params)
+        return model
+
+
+def compile_model(task: str, params: dict[str, float] | None = None, textures: bool = False) -> mujoco.MjModel:
+    """One-off `ModelBuilder(task).compile(defaults | params)`."""
+    spec = get_task(task)
+    return ModelBuilder(spec, textures=textures).compile(dict(spec.params) | dict(params or {}))
+
+
+class _Snapshot:
+    """The XML's values of every field `apply_params` writes."""
+
+    def __init__(self, spec: mujoco.MjSpec, task: TaskSpec):
+        self.geoms = [(g, g.density, g.mass, np.array(g.friction)) for g in spec.geoms]
+        self.joints = [(j, np.array(j.damping)) for j in spec.joints]
+        self.stiff = [(spec.joint(n), np.array(spec.joint(n).stiffness), spec.joint(n).springref) for n in task.stiffness_joints]
+        opt = spec.option
+        self.option = (np.array(opt.gravity), np.array(opt.wind), opt.density, opt.viscosity)
+        layout = LAYOUTS.get(task.name)
+        if layout:
+            torso = spec.body(layout.torso_body)
+            hips = [spec.body(n) for n in layout.hip_bodies]
+            self.torso = (torso, np.array(torso.pos))
+            self.torso_geom = (spec.geom(layout.torso_geom), np.array(spec.geom(layout.torso_geom).size))
+            self.hips = [(h, np.array(h.pos)) for h in hips]
+            self.slides = [(spec.joint(n), np.array(spec.joint(n).pos)) for n in layout.root_slides]
+            self.feet = [(spec.geom(n), np.array(spec.geom(n).size)) for n in layout.foot_geoms]
+            self.hip_z = float(torso.pos[2] + hips[0].pos[2])  # 1.25 - 0.2 = 1.05
+
+
+#: Parameters written together; `apply_params` skips a group whose values did not change.
+_GROUPS = {
+    "torso": ("torso_length",),
+    "feet": ("foot_length",),
+    "mass": ("mass_scale",),
+    "friction": ("friction_scale",),
+    "damping": ("damping_scale",),
+    "stiffness": ("stiffness",),
+    "option": ("gravity", "wind"),
+}
+
+
+def apply_params(
+    spec: mujoco.MjSpec,
+    task: TaskSpec,
+    params: dict[str, float],
+    base: _Snapshot,
+    previous: dict[str, float] | None = None,
+) -> None:
+    """Write `params` into `spec` (absolute values from `base`; see the module docstring).
+    Groups whose values equal `previous` (what `spec` already holds) are skipped."""
+    defaults = task.params
+
+    def changed(group: str) -> bool:
+        names = [n for n in _GROUPS[group] if n in defaults]
+        return previous is None or any(params[n] != previous[n] for n in names)
+
+    if task.name in LAYOUTS:
+        if changed("torso"):
+            _set_torso(base, params["torso_length"], params["torso_length"] == defaults["torso_length"])
+        if changed("feet"):
+            _set_feet(base, params["foot_length"], params["foot_length"] == defaults["foot_length"])
+    if changed("mass"):
+        for geom, density, geom_mass, _ in base.geoms:
+            geom.density = density * params["mass_scale"]
+            geom.mass = geom_mass * params["mass_scale"]  # NaN (mass from density) stays NaN
+    if changed("friction"):
+        for geom, _, _, friction in base.geoms:
+            geom.friction = friction * params["friction_scale"]
+    if changed("damping"):
+        for joint, damping in base.joints:
+            joint.damping = damping * params["damping_scale"]
+    if base.stiff and changed("stiffness"):
+        k = params["stiffness"]
+        # springref is an angle in the compiler's unit (degrees in Gymnasium's XMLs); stiffness per rad
+        spring_ref = math.degrees(task.spring_ref) if spec.compiler.degree else task.spring_ref
+        for joint, stiffness, springref in base.stiff:
+            joint.stiffness = stiffness if k == 0.0 else np.concatenate([[k], stiffness[1:]])
+            joint.springref = springref if k == 0.0 else spring_ref
+    if changed("option"):
+        gravity, wind, density, viscosity = base.option
+        opt = spec.option
+        opt.gravity = gravity if "gravity" not in params else [0.0, 0.0, -params["gravity"]]
+        opt.wind = wind if "wind" not in params else [0.0 - params["wind"], 0.0, 0.0]
+        opt.density, opt.viscosity = task.medium or (density, viscosity)
+
+
+def _set_torso(base: _Snapshot, length: float, untouched: bool) -> None:
+    """Torso centre at hip + L, capsule half-length L, hips at -L, root slides at the origin."""
+    torso, pos = base.torso
+    geom, size = base.torso_geom
+    torso.pos = pos if untouched else [pos[0], pos[1], base.hip_z + length]
+    geom.size = size if untouched else [size[0], length, size[2]]
+    for hip, hip_pos in base.hips:
+        hip.pos = hip_pos if untouched else [hip_pos[0], hip_pos[1], -length]
+    for slide, slide_pos in base.slides:
+        slide.pos = slide_pos if untouched else [slide_pos[0], slide_pos[1], -(base.hip_z + length)]
+
+
+def _set_feet(base: _Snapshot, length: float, untouched: bool) -> None:
+    """Every foot capsule gets half-length F about its unchanged centre (as OMPO)."""
+    for geom, size in base.feet:
+        geom.size = size if untouched else [size[0], length, size[2]]
+
+
+def _strip_textures(spec: mujoco.MjSpec) -> None:
+    """Remove all textures (visual only) so that compiling skips generating them."""
+    for material in spec.materials:
+        material.textures = [""] * len(material.textures)
+    while spec.textures:
+        spec.delete(spec.textures[0])

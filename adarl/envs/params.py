@@ -1,0 +1,86 @@
+"""Physical parameters of the tasks: what each one means and which values are allowed.
+
+Every value a user can give (a `fixed:` string, a keyword override, a schedule built in code) is
+checked here, before any MuJoCo model is built, and rejected with a one-line `UsageError`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from adarl.errors import UsageError
+
+
+@dataclass(frozen=True)
+class Param:
+    """One physical parameter: its unit, meaning and the open/closed lower bound it must respect."""
+
+    name: str
+    unit: str
+    meaning: str
+    lower: float | None  # None: any finite number
+    strict: bool  # True: value > lower; False: value >= lower
+
+    @property
+    def allowed(self) -> str:
+        """The allowed values in words, e.g. 'a number > 0'."""
+        if self.lower is None:
+            return "any finite number"
+        return f"a number {'>' if self.strict else '>='} {self.lower:g}"
+
+    def check(self, value) -> float:
+        """Return `value` as a float, or raise a one-line `UsageError` naming it and what is allowed."""
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        ok = math.isfinite(number) and (
+            self.lower is None
+            or (number > self.lower if self.strict else number >= self.lower)
+        )
+        if not ok:
+            raise UsageError(f"bad value {value!r} for {self.name}; allowed: {self.allowed}")
+        return number
+
+
+PARAMS: dict[str, Param] = {
+    p.name: p
+    for p in (
+        Param("torso_length", "m", "torso capsule half-length", 0.0, True),
+        Param("foot_length", "m", "foot capsule half-length (both feet on Walker2d)", 0.0, True),
+        Param("gravity", "m/s^2", "gravity magnitude, pointing down", 0.0, False),
+        Param("wind", "m/s", "head-wind speed along -x (opt.wind = (-W, 0, 0))", None, False),
+        Param("mass_scale", "x", "factor on every body mass and inertia", 0.0, True),
+        Param("friction_scale", "x", "factor on every geom friction coefficient", 0.0, False),
+        Param("damping_scale", "x", "factor on every joint damping", 0.0, False),
+        Param("stiffness", "N m/rad", "joint spring stiffness of the stiffened joints", 0.0, False),
+    )
+}
+
+
+@dataclass(frozen=True)
+class Sinusoid:
+    """Episode-indexed parameter value ``center + amplitude * sin(frequency * i)``."""
+
+    center: float
+    amplitude: float
+    frequency: float
+
+    def __call__(self, episode: int) -> float:
+        return self.center + self.amplitude * math.sin(self.frequency * episode)
+
+    @property
+    def low(self) -> float:
+        """Smallest value the sinusoid reaches: center - |amplitude|."""
+        return self.center - abs(self.amplitude)
+
+    @property
+    def high(self) -> float:
+        """Largest value the sinusoid reaches: center + |amplitude|."""
+        return self.center + abs(self.amplitude)
+
+    def formula(self) -> str:
+        """The formula as text, e.g. '0.4 + 0.2·sin(0.2·i)'."""
+        sign = "-" if self.amplitude < 0 else "+"
+        return f"{self.center:g} {sign} {abs(self.amplitude):g}·sin({self.frequency:g}·i)"

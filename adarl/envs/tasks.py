@@ -1,0 +1,134 @@
+"""The four tasks of the AdaRL paper: Gymnasium ids, sizes, parameters and schedule formulas.
+
+Schedules (AdaRL appendix "Model Uncertainty Setting", i = episode index):
+  Hopper    torso 0.4 + 0.2·sin(0.2i), foot 0.39 + 0.2·sin(0.2i)   (OMPO's code: amplitude 0.1)
+  Walker2d  torso 0.2 + 0.1·sin(0.3i), foot 0.1 + 0.05·sin(0.3i)
+  Ant       g 14.715 + 4.905·sin(0.5i), W 1 + 0.2·sin(0.5i)
+  Humanoid  g 14.715 + 4.905·sin(0.5i), W 1 + 0.5·sin(0.5i)
+Lengths are capsule half-lengths (Gymnasium: Hopper torso 0.2 / foot 0.195, Walker2d 0.2 / 0.1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+from adarl.envs.params import PARAMS, Sinusoid
+from adarl.errors import check_choice
+
+#: Generic robustness parameters every task has, at their no-change values.
+GENERIC_DEFAULTS = {"mass_scale": 1.0, "friction_scale": 1.0, "damping_scale": 1.0}
+
+#: Air, as OMPO sets it for Ant and Humanoid so that MuJoCo's wind acts: (density kg/m^3, viscosity Pa s).
+AIR = (1.2, 2e-5)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """Static facts about one task. `params` maps each parameter to its Gymnasium default."""
+
+    name: str
+    gym_id: str
+    obs_dim: int
+    act_dim: int
+    params: MappingProxyType
+    schedules: MappingProxyType  # "paper" / "ompo" -> {param: Sinusoid}
+    medium: tuple[float, float] | None = None  # (density, viscosity) outside `default` mode
+    stiffness_joints: tuple[str, ...] = ()
+    spring_ref: float = 0.0  # rad; the spring reference of `stiffness_joints`
+    intrinsic_rank: int = field(init=False)
+
+    def __post_init__(self):
+        # Tiwari et al. 2025: reachable states lie on a manifold of dimension <= 2·d_a + 1.
+        object.__setattr__(self, "intrinsic_rank", 2 * self.act_dim + 1)
+
+    @property
+    def varied(self) -> tuple[str, ...]:
+        """The parameters the paper's schedule varies from episode to episode."""
+        return tuple(self.schedules["paper"])
+
+    @property
+    def formulas(self) -> dict[str, dict[str, str]]:
+        """Schedule formulas as text: {"paper": {"torso_length": "0.4 + 0.2·sin(0.2·i)"}, ...}."""
+        return {
+            kind: {p: s.formula() for p, s in sched.items()} for kind, sched in self.schedules.items()
+        }
+
+
+def _task(name, gym_id, obs_dim, act_dim, varied_defaults, paper, ompo=None, **extra) -> TaskSpec:
+    params = dict(varied_defaults) | GENERIC_DEFAULTS
+    if extra.get("stiffness_joints"):
+        params["stiffness"] = 0.0
+    assert set(params) <= set(PARAMS), params
+    return TaskSpec(
+        name=name,
+        gym_id=gym_id,
+        obs_dim=obs_dim,
+        act_dim=act_dim,
+        params=MappingProxyType(params),
+        schedules=MappingProxyType(
+            {"paper": MappingProxyType(paper), "ompo": MappingProxyType(ompo or paper)}
+        ),
+        **extra,
+    )
+
+
+TASKS: dict[str, TaskSpec] = {
+    t.name: t
+    for t in (
+        _task(
+            "hopper",
+            "Hopper-v5",
+            11,
+            3,
+            {"torso_length": 0.2, "foot_length": 0.195},
+            paper={"torso_length": Sinusoid(0.4, 0.2, 0.2), "foot_length": Sinusoid(0.39, 0.2, 0.2)},
+            ompo={"torso_length": Sinusoid(0.4, 0.1, 0.2), "foot_length": Sinusoid(0.39, 0.1, 0.2)},
+            # RNAC's Hopper sweep writes springref 2.0 rad to the hopper's joints (leg stiffened).
+            stiffness_joints=("leg_joint", "foot_joint"),
+            spring_ref=2.0,
+        ),
+        _task(
+            "walker2d",
+            "Walker2d-v5",
+            17,
+            6,
+            {"torso_length": 0.2, "foot_length": 0.1},
+            paper={"torso_length": Sinusoid(0.2, 0.1, 0.3), "foot_length": Sinusoid(0.1, 0.05, 0.3)},
+            # RNAC's Walker2d env sets no springref: the spring pulls towards the standing pose.
+            stiffness_joints=("foot_joint", "foot_left_joint"),
+            spring_ref=0.0,
+        ),
+        _task(
+            "ant",
+            "Ant-v5",
+            105,
+            8,
+            {"gravity": 9.81, "wind": 0.0},
+            paper={"gravity": Sinusoid(14.715, 4.905, 0.5), "wind": Sinusoid(1.0, 0.2, 0.5)},
+            medium=AIR,
+        ),
+        _task(
+            "humanoid",
+            "Humanoid-v5",
+            348,
+            17,
+            {"gravity": 9.81, "wind": 0.0},
+            paper={"gravity": Sinusoid(14.715, 4.905, 0.5), "wind": Sinusoid(1.0, 0.5, 0.5)},
+            medium=AIR,
+        ),
+    )
+}
+
+
+def list_tasks() -> list[str]:
+    """Task names: ["hopper", "walker2d", "ant", "humanoid"]."""
+    return list(TASKS)
+
+
+def get_task(name: str) -> TaskSpec:
+    """The `TaskSpec` of `name`; a one-line `UsageError` lists the tasks if it is unknown."""
+    key = name.strip().lower() if isinstance(name, str) else name
+    if key not in TASKS:
+        check_choice("task", name, TASKS)
+    return TASKS[key]

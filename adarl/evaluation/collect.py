@@ -1,0 +1,210 @@
+"""Reading a run folder's logs into tidy tables for the report (no computation beyond grouping).
+
+Each function takes a `Run` and returns a pandas DataFrame (empty when the run lacks that log):
+final nominal returns per seed, the training curve, the rank history, truncation steps,
+singular-value spectra, stored evaluations and policy sizes. File layout: docs/run-format.md.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from adarl.evaluation.evaluate import EVALUATIONS_DIR
+from adarl.evaluation.runs import Run, checkpoint_step, policy_files
+from adarl.train.io import checkpoint_dirs, read_csv
+
+NOMINAL = "nominal"
+CURVE_BINS = 50
+
+
+def read_table(path: Path) -> pd.DataFrame:
+    """A run CSV as a DataFrame (numeric columns converted); empty if the file is missing."""
+    if not Path(path).is_file():
+        return pd.DataFrame()
+    df = pd.DataFrame(read_csv(path))
+    for column in df.columns:
+        converted = pd.to_numeric(df[column], errors="coerce")
+        if converted.notna().sum() == df[column].replace("", np.nan).notna().sum():
+            df[column] = converted
+    return df
+
+
+# ----------------------------------------------------------------------------- evaluations
+@dataclass(frozen=True)
+class Evaluation:
+    """One `adarl evaluate` output stored in the run: its name, sidecar and table."""
+
+    name: str
+    meta: dict
+    table: pd.DataFrame
+
+    @property
+    def swept(self) -> list[str]:
+        return list(self.meta.get("sweep") or {})
+
+
+def evaluations(run: Run) -> list[Evaluation]:
+    """Evaluations stored under `RUN_DIR/evaluations/` (CSV files that have a JSON sidecar)."""
+    folder = run.path / EVALUATIONS_DIR
+    found = []
+    for csv_path in sorted(folder.glob("*.csv")) if folder.is_dir() else []:
+        sidecar = csv_path.with_suffix(".json")
+        if not sidecar.is_file():
+            continue
+        try:
+            meta = json.loads(sidecar.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        table = read_table(csv_path)
+        if not table.empty:
+            found.append(Evaluation(csv_path.stem, meta, table))
+    return found
+
+
+def final_step(run: Run) -> int | None:
+    found = checkpoint_dirs(run.path)
+    return checkpoint_step(found[-1]) if found else None
+
+
+def final_scores(run: Run) -> tuple[pd.DataFrame, str]:
+    """Each seed's final return under nominal dynamics: columns `seed, score`, and a note
+    saying where it came from.
+
+    Preferred: an `adarl evaluate --dynamics nominal` of the final checkpoint (the mean over its
+    episodes); else the last evaluation logged during training (eval.csv, dynamics `nominal`).
+    """
+    last = final_step(run)
+    for ev in evaluations(run):
+        meta = ev.meta
+        if (
+            meta.get("dynamics") == NOMINAL
+            and not meta.get("sweep")
+            and not meta.get("hold")
+            and meta.get("final_checkpoint", True)
+            and meta.get("checkpoint_step") == last
+            and not meta.get("max_episode_steps")
+        ):
+            scores = ev.table.groupby("seed")["return"].mean()
+            note = f"`adarl evaluate` ({meta.get('episodes')} episodes, step {last})"
+            return _scores(scores), note
+    log = read_table(run.path / "eval.csv")
+    if log.empty or "dynamics" not in log:
+        return _scores(pd.Series(dtype=float)), "none"
+    log = log[log["dynamics"] == NOMINAL]
+    if log.empty:
+        return _scores(pd.Series(dtype=float)), "none"
+    at_last = log[log["step"] == log.groupby("seed")["step"].transform("max")]
+    scores = at_last.groupby("seed")["return"].mean()
+    steps = sorted(int(s) for s in at_last["step"].unique())
+    return _scores(scores), f"eval.csv at step {', '.join(map(str, steps))}"
+
+
+def _scores(series: pd.Series) -> pd.DataFrame:
+    return pd.DataFrame({"seed": series.index.astype(int), "score": series.to_numpy(float)})
+
+
+# ----------------------------------------------------------------------------- curves
+def training_curve(run: Run) -> tuple[pd.DataFrame, str]:
+    """Return over training, columns `step, seed, return`, and its source.
+
+    From the nominal evaluations logged in eval.csv (mean over episodes per step and seed); a
+    run without them falls back to the training episodes (episodes.csv) averaged in
+    `CURVE_BINS` equal step bins.
+    """
+    log = read_table(run.path / "eval.csv")
+    if not log.empty and "dynamics" in log:
+        log = log[log["dynamics"] == NOMINAL]
+        if not log.empty:
+            curve = log.groupby(["step", "seed"], as_index=False)["return"].mean()
+            return curve, "nominal evaluation (eval.csv)"
+    episodes = read_table(run.path / "episodes.csv")
+    if episodes.empty:
+        return pd.DataFrame(columns=["step", "seed", "return"]), "none"
+    top = float(episodes["step"].max())
+    edges = np.linspace(0.0, top, CURVE_BINS + 1)
+    bins = np.clip(np.searchsorted(edges, episodes["step"], side="left"), 1, CURVE_BINS)
+    episodes = episodes.assign(step=edges[bins].round().astype(int))
+    curve = episodes.groupby(["step", "seed"], as_index=False)["return"].mean()
+    return curve, "training episodes (episodes.csv)"
+
+
+def rank_history(run: Run) -> pd.DataFrame:
+    """Rank of each bottleneck over training from train.csv: columns `step, seed, layer, rank`."""
+    log = read_table(run.path / "train.csv")
+    columns = [c for c in log.columns if c.startswith("rank_")]
+    if log.empty or not columns:
+        return pd.DataFrame(columns=["step", "seed", "layer", "rank"])
+    long = log.melt(
+        id_vars=["step", "seed"], value_vars=columns, var_name="layer", value_name="rank"
+    )
+    long["layer"] = long["layer"].str.removeprefix("rank_")
+    return long.dropna(subset=["rank"]).reset_index(drop=True)
+
+
+def truncation_steps(run: Run) -> list[int]:
+    """Steps at which the run truncated its bottlenecks (from truncations.csv)."""
+    log = read_table(run.path / "truncations.csv")
+    if log.empty:
+        return []
+    return sorted(int(s) for s in log["step"].unique())
+
+
+def final_ranks(run: Run) -> pd.DataFrame:
+    """The last logged rank of each bottleneck per seed: columns `seed, layer, rank`."""
+    history = rank_history(run)
+    if history.empty:
+        return pd.DataFrame(columns=["seed", "layer", "rank"])
+    history = history.sort_values("step")
+    return history.groupby(["seed", "layer"], as_index=False)["rank"].last()
+
+
+# ----------------------------------------------------------------------------- spectra
+@dataclass(frozen=True)
+class Spectrum:
+    """Singular values of every bottleneck at one truncation (`n_seeds × width` per layer)."""
+
+    step: int
+    layers: dict[str, np.ndarray]
+    seeds: np.ndarray
+
+
+def spectra(run: Run) -> list[Spectrum]:
+    folder = run.path / "spectra"
+    found = []
+    for path in sorted(folder.glob("step_*.npz")) if folder.is_dir() else []:
+        m = re.match(r"^step_(\d+)\.npz$", path.name)
+        if not m:
+            continue
+        with np.load(path, allow_pickle=False) as z:
+            layers = {k: np.atleast_2d(z[k]) for k in z.files if k != "seeds"}
+            seeds = (
+                z["seeds"] if "seeds" in z.files else np.arange(len(next(iter(layers.values()))))
+            )
+        found.append(Spectrum(int(m.group(1)), layers, np.asarray(seeds)))
+    return sorted(found, key=lambda s: s.step)
+
+
+# ----------------------------------------------------------------------------- policy sizes
+def policy_sizes(run: Run) -> pd.DataFrame:
+    """Parameters of each seed's final policy: columns `seed, n_params, n_params_full`
+    (`n_params_full` is the same network at full rank; equal to `n_params` when the policy file
+    does not record it, i.e. the policy was never compressed)."""
+    from adarl.policy import load
+
+    found = checkpoint_dirs(run.path)
+    rows = []
+    if found:
+        for seed, path in policy_files(found[-1]).items():
+            policy = load(path)
+            full = policy.arrays.get("n_params_full")
+            n = policy.n_params()
+            rows.append(
+                {"seed": seed, "n_params": n, "n_params_full": int(full) if full is not None else n}
+            )
+    return pd.DataFrame(rows, columns=["seed", "n_params", "n_params_full"])

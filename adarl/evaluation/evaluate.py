@@ -1,0 +1,249 @@
+"""Evaluating the saved policies of runs under chosen dynamics or over a dynamics grid.
+
+`plan` turns runs and an `EvalSpec` into work units (one seed's policy at one grid point),
+checking everything first; `execute` runs the units, over a process pool when asked (policies are
+NumPy files, so workers need no JAX); `evaluate_runs` does both and returns one table per run;
+`write_evaluation` stores a table as `RUN_DIR/evaluations/<name>.csv` with a JSON sidecar that
+records how it was made (the report reads both).
+
+Every episode is deterministic: the policy is deterministic and the environment of every seed's
+policy is seeded with the same `eval_seed` (episode k resets with `eval_seed + k`), so all policies
+face the same initial states and the same seed gives the same returns.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import sys
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from adarl.errors import UsageError
+from adarl.evaluation import grid
+from adarl.evaluation.runs import Run, checkpoint_step, policy_files, select_checkpoint
+from adarl.train.io import atomic_write_json, atomic_write_text
+
+EVAL_SEED = 100_000  # far from the seeds training uses for its own environments
+EVALUATIONS_DIR = "evaluations"
+COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length"]
+
+
+@dataclass(frozen=True)
+class EvalSpec:
+    """What to evaluate: a base dynamics spec, optional swept axes and held values, how many
+    episodes per seed and grid point, which checkpoint (None: the final one)."""
+
+    dynamics: str = "nominal"
+    axes: tuple[grid.Axis, ...] = ()
+    holds: tuple[tuple[str, float], ...] = ()
+    episodes: int = 10
+    checkpoint: int | None = None
+    eval_seed: int = EVAL_SEED
+    max_steps: int | None = None
+
+    @classmethod
+    def from_options(
+        cls,
+        dynamics: str = "nominal",
+        sweeps: Sequence[str] = (),
+        holds: Sequence[str] = (),
+        **kwargs,
+    ) -> EvalSpec:
+        """Build from CLI strings: `--dynamics`, repeated `--sweep P=lo:hi:n`, `--hold P=v`."""
+        base, axes, held = grid.split_dynamics(dynamics)
+        axes += [grid.parse_axis(s) for s in sweeps]
+        held += [grid.parse_hold(h) for h in holds]
+        spec = cls(dynamics=base, axes=tuple(axes), holds=tuple(held), **kwargs)
+        if spec.episodes < 1:
+            raise UsageError(f"--episodes must be ≥ 1, got {spec.episodes}")
+        if spec.max_steps is not None and spec.max_steps < 1:
+            raise UsageError(f"--max-episode-steps must be ≥ 1, got {spec.max_steps}")
+        return spec
+
+    @property
+    def name(self) -> str:
+        return grid.evaluation_name(self.dynamics, self.axes, self.holds, self.checkpoint)
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One seed's policy at one grid point: the smallest piece of work a worker runs."""
+
+    run_index: int
+    policy_path: str
+    task: str
+    seed: int
+    step: int
+    dynamics: str
+    point: tuple[tuple[str, float], ...]
+    episodes: int
+    eval_seed: int
+    max_steps: int | None = None
+    label: str = field(default="")
+
+
+# ----------------------------------------------------------------------------- planning
+def task_parameters(task: str) -> list[str]:
+    """Names of the physical parameters of `task` (from `adarl.envs.get_task`)."""
+    from adarl.envs import get_task
+
+    return list(get_task(task).params)
+
+
+def check_dynamics(spec: str, task: str) -> None:
+    """Let `adarl.envs.parse_dynamics` reject a bad spec before any work starts."""
+    from adarl.envs import parse_dynamics
+
+    parse_dynamics(spec, task)
+
+
+def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
+    """All units for `runs` under `spec`, validated (checkpoints, seeds, parameters, grid)."""
+    units: list[Unit] = []
+    grids: dict[str, list[dict[str, float]]] = {}
+    for index, run in enumerate(runs):
+        checkpoint = select_checkpoint(run, spec.checkpoint)
+        files = policy_files(checkpoint)
+        if run.task not in grids:
+            check_dynamics(spec.dynamics, run.task)
+            points = grid.build_grid(spec.axes, spec.holds, task_parameters(run.task), run.task)
+            for point in points:  # values out of range fail here, before any episode
+                check_dynamics(grid.point_label(spec.dynamics, point), run.task)
+            grids[run.task] = points
+        for point in grids[run.task]:
+            for seed, path in files.items():
+                units.append(
+                    Unit(
+                        run_index=index,
+                        policy_path=str(path),
+                        task=run.task,
+                        seed=seed,
+                        step=checkpoint_step(checkpoint),
+                        dynamics=spec.dynamics,
+                        point=tuple(point.items()),
+                        episodes=spec.episodes,
+                        eval_seed=spec.eval_seed,
+                        max_steps=spec.max_steps,
+                        label=grid.point_label(spec.dynamics, point),
+                    )
+                )
+    return units
+
+
+# ----------------------------------------------------------------------------- running
+def run_unit(unit: Unit) -> list[dict]:
+    """Run one unit's episodes; rows carry `step, seed, dynamics` in front."""
+    from adarl.evaluation.rollout import run_episodes
+    from adarl.policy import load
+
+    policy = load(unit.policy_path)
+    rows = run_episodes(
+        policy,
+        unit.task,
+        unit.dynamics,
+        unit.episodes,
+        unit.eval_seed,
+        max_steps=unit.max_steps,
+        **dict(unit.point),
+    )
+    head = {"step": unit.step, "seed": unit.seed, "dynamics": unit.label}
+    return [{**head, **row} for row in rows]
+
+
+def default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def start_method() -> str:
+    """`fork` (fast, no re-import of the caller's main module) unless JAX is loaded in this
+    process or the platform lacks it; then `spawn` (forking a multithreaded JAX process is unsafe)."""
+    if "fork" in multiprocessing.get_all_start_methods() and "jax" not in sys.modules:
+        return "fork"
+    return "spawn"
+
+
+def execute(
+    units: Sequence[Unit], workers: int | None = None, method: str | None = None
+) -> list[list[dict]]:
+    """Run `units`, in order; over a pool of `workers` processes when more than one.
+
+    Results come back in the order of `units` whatever the number of workers, so output files
+    do not depend on it. `method` is the multiprocessing start method (default: `start_method()`).
+    """
+    workers = default_workers() if workers is None else workers
+    if workers < 1:
+        raise UsageError(f"--workers must be ≥ 1, got {workers}")
+    workers = min(workers, len(units))
+    if workers <= 1:
+        return [run_unit(u) for u in units]
+    context = multiprocessing.get_context(method or start_method())
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        return list(pool.map(run_unit, units, chunksize=1))
+
+
+def evaluate_runs(
+    runs: Sequence[Run],
+    spec: EvalSpec,
+    workers: int | None = None,
+    method: str | None = None,
+) -> list[pd.DataFrame]:
+    """Evaluate every seed of every run; one table per run (columns `COLUMNS` then `p_*`)."""
+    units = plan(runs, spec)
+    results = execute(units, workers, method)
+    per_run: list[list[dict]] = [[] for _ in runs]
+    for unit, rows in zip(units, results):
+        per_run[unit.run_index].extend(rows)
+    return [_table(rows) for rows in per_run]
+
+
+def _table(rows: list[dict]) -> pd.DataFrame:
+    df = pd.DataFrame(rows)
+    if df.empty:
+        return pd.DataFrame(columns=COLUMNS)
+    params = sorted(c for c in df.columns if c.startswith("p_"))
+    return df[COLUMNS + params]
+
+
+# ----------------------------------------------------------------------------- output
+def default_output(run: Run, spec: EvalSpec) -> Path:
+    return run.path / EVALUATIONS_DIR / f"{spec.name}.csv"
+
+
+def write_evaluation(
+    table: pd.DataFrame, path: Path, spec: EvalSpec, run: Run, command: str | None = None
+) -> Path:
+    """Write the CSV and its JSON sidecar (same stem), each atomically, the sidecar last."""
+    path = Path(path)
+    atomic_write_text(path, table.to_csv(index=False, float_format="%.6g"))
+    meta = {
+        "name": spec.name,
+        "run": str(run.path),
+        "task": run.task,
+        "dynamics": spec.dynamics,
+        "sweep": {a.name: list(a.values) for a in spec.axes},
+        "hold": dict(spec.holds),
+        "episodes": spec.episodes,
+        "checkpoint_step": int(table["step"].iloc[0]) if len(table) else None,
+        "final_checkpoint": spec.checkpoint is None,
+        "eval_seed": spec.eval_seed,
+        "max_episode_steps": spec.max_steps,
+        "seeds": sorted(int(s) for s in table["seed"].unique()),
+        "command": command,
+    }
+    atomic_write_json(path.with_suffix(".json"), meta)
+    return path
+
+
+def summarise(table: pd.DataFrame) -> pd.DataFrame:
+    """Per grid point: the mean and standard deviation over seeds of each seed's mean return."""
+    per_seed = table.groupby(["dynamics", "seed"], sort=False)["return"].mean().reset_index()
+    out = per_seed.groupby("dynamics", sort=False)["return"].agg(["mean", "std", "count"])
+    return out.rename(columns={"count": "seeds"}).reset_index()

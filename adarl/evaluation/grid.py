@@ -1,0 +1,197 @@
+"""Dynamics grids for evaluation sweeps: parsing `--sweep P=lo:hi:n`, `--hold P=v` and
+`--dynamics sweep:…`, and naming the grid's points and output files.
+
+A grid is the Cartesian product of its swept axes, with the held parameters fixed at one value;
+every point is a dict `{parameter: value}` that is passed to the environment as fixed parameter
+overrides on top of a base dynamics spec (`nominal` by default). Pure functions, no I/O.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from adarl.errors import UsageError
+
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept parameter and the values it takes, in the order given."""
+
+    name: str
+    values: tuple[float, ...]
+    text: str  # how the user wrote it, e.g. "torso_length=0.2:0.6:9"
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"{what}: {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise UsageError(f"{what}: {text!r} is not a finite number")
+    return value
+
+
+def _clean(value: float) -> float:
+    """Round away floating-point noise from linspace (0.30000000000000004 -> 0.3)."""
+    return float(f"{value:.12g}")
+
+
+def _split_assignment(text: str, flag: str) -> tuple[str, str]:
+    name, sep, rhs = text.partition("=")
+    name = name.strip()
+    if not sep or not rhs.strip():
+        raise UsageError(f"{flag} {text!r}: expected PARAM=VALUE")
+    if not _NAME.match(name):
+        raise UsageError(f"{flag} {text!r}: {name!r} is not a parameter name")
+    return name, rhs.strip()
+
+
+def parse_axis(text: str) -> Axis:
+    """Parse one `--sweep` value.
+
+    Forms: `P=lo:hi:n` (n evenly spaced values from lo to hi, both included, as numpy.linspace),
+    `P=v1,v2,…` (explicit values) or `P=v` (a single value). n must be a positive integer;
+    n = 0 or an empty list is an empty grid and raises `UsageError`.
+    """
+    name, rhs = _split_assignment(text, "--sweep")
+    what = f"--sweep {text!r}"
+    if ":" in rhs:
+        parts = rhs.split(":")
+        if len(parts) != 3:
+            raise UsageError(f"{what}: expected {name}=LO:HI:N, e.g. {name}=0.2:0.6:9")
+        lo, hi = _number(parts[0], what), _number(parts[1], what)
+        try:
+            n = int(parts[2])
+        except ValueError:
+            raise UsageError(
+                f"{what}: the number of points {parts[2]!r} is not an integer"
+            ) from None
+        if n < 0:
+            raise UsageError(f"{what}: the number of points must be ≥ 1, got {n}")
+        if n == 0:
+            raise UsageError(f"{what}: empty grid (0 points); use N ≥ 1")
+        if n == 1 and lo != hi:
+            raise UsageError(f"{what}: one point cannot span {lo:g}..{hi:g}; use N ≥ 2 or LO = HI")
+        values = tuple(_clean(v) for v in np.linspace(lo, hi, n))
+    else:
+        items = [item.strip() for item in rhs.split(",")]
+        if not any(items):
+            raise UsageError(f"{what}: empty grid (no values)")
+        values = tuple(_clean(_number(item, what)) for item in items if item)
+    if len(set(values)) != len(values):
+        raise UsageError(f"{what}: repeated values {list(values)}")
+    return Axis(name=name, values=values, text=text)
+
+
+def parse_hold(text: str) -> tuple[str, float]:
+    """Parse one `--hold P=v` value into `(P, v)`."""
+    name, rhs = _split_assignment(text, "--hold")
+    return name, _clean(_number(rhs, f"--hold {text!r}"))
+
+
+def split_dynamics(spec: str) -> tuple[str, list[Axis], list[tuple[str, float]]]:
+    """Split a `--dynamics` value into a base spec, swept axes and held values.
+
+    `sweep:torso_length=0.2:0.6:9,foot_length=0.39` sweeps torso_length over the nominal dynamics
+    and holds foot_length (an item with LO:HI:N is swept, a single value is held). Any other spec
+    (`nominal`, `default`, `paper`, `fixed:…`) is returned as the base with no axes.
+    """
+    spec = spec.strip()
+    if not spec.startswith("sweep:"):
+        if not spec:
+            raise UsageError(
+                "--dynamics is empty; allowed: nominal, default, fixed:P=V,…, sweep:P=LO:HI:N,…"
+            )
+        return spec, [], []
+    body = spec[len("sweep:") :]
+    axes, holds = [], []
+    for item in (part.strip() for part in body.split(",")):
+        if not item:
+            continue
+        if ":" in item.partition("=")[2]:
+            axes.append(parse_axis(item))
+        else:
+            holds.append(parse_hold(item))
+    if not axes:
+        raise UsageError(f"--dynamics {spec!r}: empty grid (no PARAM=LO:HI:N item to sweep)")
+    return "nominal", axes, holds
+
+
+def build_grid(
+    axes: Sequence[Axis],
+    holds: Iterable[tuple[str, float]],
+    allowed: Iterable[str],
+    task: str = "",
+) -> list[dict[str, float]]:
+    """All points of the grid, in row-major order of `axes` (the last axis varies fastest).
+
+    Checks that every parameter is one of `allowed` (the task's parameters), that none is swept
+    twice or both swept and held; raises a one-line `UsageError` otherwise. With no axes the grid
+    is the single point of the held values (possibly empty: the base dynamics alone).
+    """
+    allowed = list(allowed)
+    holds = list(holds)
+    where = f" of task {task}" if task else ""
+    seen: set[str] = set()
+    for name in [a.name for a in axes] + [h[0] for h in holds]:
+        if name not in allowed:
+            raise UsageError(
+                f"unknown parameter {name!r}{where}; allowed: {', '.join(allowed) or '(none)'}"
+            )
+        if name in seen:
+            raise UsageError(f"parameter {name!r} is swept or held more than once")
+        seen.add(name)
+    points = []
+    for combo in itertools.product(*(a.values for a in axes)):
+        point = {a.name: v for a, v in zip(axes, combo)}
+        point.update(dict(holds))
+        points.append(point)
+    if not points:
+        raise UsageError("empty grid: no dynamics to evaluate")
+    return points
+
+
+def format_value(value: float) -> str:
+    return f"{value:g}"
+
+
+def point_label(base: str, point: dict[str, float]) -> str:
+    """The dynamics spec of one grid point: the base with the point's values as overrides, in
+    the syntax `adarl.envs.parse_dynamics` reads (`nominal:torso_length=0.3,foot_length=0.39`,
+    `fixed:a=1` + b=2 -> `fixed:a=1,b=2`), so it can be passed to `adarl play --dynamics`."""
+    if not point:
+        return base
+    values = ",".join(f"{k}={format_value(v)}" for k, v in point.items())
+    return f"{base}{',' if ':' in base else ':'}{values}"
+
+
+def evaluation_name(
+    base: str,
+    axes: Sequence[Axis] = (),
+    holds: Iterable[tuple[str, float]] = (),
+    step: int | None = None,
+) -> str:
+    """A file-name-safe name for an evaluation, e.g. `nominal` or
+    `sweep-torso_length-0.2-0.6-9_hold-foot_length-0.39` (plus `_step-N` for a chosen checkpoint).
+    """
+    parts = [] if axes else [base]
+    if axes and base != "nominal":
+        parts.append(base)
+    for a in axes:
+        vals = a.values
+        parts.append(f"sweep-{a.name}-{format_value(vals[0])}-{format_value(vals[-1])}-{len(vals)}")
+    for name, value in holds:
+        parts.append(f"hold-{name}-{format_value(value)}")
+    if step is not None:
+        parts.append(f"step-{step}")
+    name = "_".join(parts)
+    return re.sub(r"[^A-Za-z0-9_.=+-]+", "-", name).strip("-") or "evaluation"

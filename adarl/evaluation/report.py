@@ -1,0 +1,796 @@
+"""`adarl report`: everything a comparison needs from any set of run folders, in one folder.
+
+`build_report(paths, out, options)` checks its input first (run folders, checkpoints, one
+training setting per task), writes the whole report into a temporary folder next to `out` and
+renames it into place at the end, so `out` is never half-written: on an error the previous
+report (if any) stays as it was.
+
+Layout of the report folder::
+
+    index.md                 links everything; budget, seeds, the exact commands
+    tables/table1.{md,tex,csv}   final nominal return per task × method (mean ± std over seeds)
+    tables/aggregate.{md,csv}    IQM and mean with 95% stratified-bootstrap CIs
+    tables/per_task.{md,csv}     the same per task, in raw returns
+    tables/probability_of_improvement.{md,csv}
+    tables/performance_profiles.csv
+    tables/fixed_rank.{md,csv}   final return per fixed rank (bias–variance sweep)
+    tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
+    tables/runs.csv
+    figures/*.{png,pdf}
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from adarl import __version__
+from adarl.errors import UsageError
+from adarl.evaluation import collect, figures, stats, tables
+from adarl.evaluation.runs import (
+    Run,
+    config_value,
+    find_runs,
+    select_checkpoint,
+    sort_methods,
+    sort_tasks,
+)
+from adarl.train.io import checkpoint_dirs
+
+REFERENCE = "adarl"
+FIXED_RANK = "sac-fixed-rank"
+INDEX = "index.md"
+MARKER = "<!-- adarl report -->"
+
+
+@dataclass
+class ReportOptions:
+    bootstrap_reps: int = 10_000
+    confidence: float = 0.95
+    seed: int = 0
+    skip_incomplete: bool = False
+    command: str = ""
+
+
+@dataclass
+class Section:
+    title: str
+    text: str = ""
+    files: list[Path] = field(default_factory=list)
+
+
+# ----------------------------------------------------------------------------- entry point
+def build_report(
+    paths: Sequence[str | os.PathLike], out: str | os.PathLike, options: ReportOptions
+) -> Path:
+    """Check the runs under `paths`, write the report to `out` atomically; returns `out`."""
+    out = Path(out)
+    check_output(out)
+    if options.bootstrap_reps < 1:
+        raise UsageError(f"--bootstrap-reps must be ≥ 1, got {options.bootstrap_reps}")
+    runs, notes = usable_runs(find_runs(paths), options.skip_incomplete)
+    check_rows(runs)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.tmp-"))
+    try:
+        write_report(runs, tmp, options, notes)
+        _swap_into_place(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def check_output(out: Path) -> None:
+    """`out` may be new, empty, or a previous report (replaced); anything else is refused."""
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file; give a folder for the report")
+    if out.is_dir() and any(out.iterdir()):
+        index = out / INDEX
+        if not (index.is_file() and MARKER in index.read_text(encoding="utf-8", errors="replace")):
+            raise UsageError(
+                f"--out {out} is a non-empty folder that is not an adarl report; "
+                "choose a new or empty folder"
+            )
+
+
+def usable_runs(runs: list[Run], skip_incomplete: bool) -> tuple[list[Run], list[str]]:
+    """Runs with at least one complete checkpoint; the others are an error, or skipped with a
+    note when `skip_incomplete`."""
+    kept, notes = [], []
+    for run in runs:
+        if checkpoint_dirs(run.path):
+            kept.append(run)
+        elif skip_incomplete:
+            notes.append(f"Skipped {run.path}: no complete checkpoint yet.")
+        else:
+            select_checkpoint(run)  # raises the one-line error naming the folder
+    if not kept:
+        raise UsageError("no run with a complete checkpoint to report on")
+    return kept, notes
+
+
+def check_rows(runs: Sequence[Run]) -> None:
+    """One table row is one task trained one way: runs of the same task must share the
+    training dynamics, or the row would compare methods on different problems."""
+    seen: dict[str, Run] = {}
+    for run in runs:
+        first = seen.setdefault(run.task, run)
+        if first.dynamics != run.dynamics:
+            raise UsageError(
+                f"runs {first.path} ({run.task}, dynamics {first.dynamics}) and {run.path} "
+                f"({run.task}, dynamics {run.dynamics}) would share the table row {run.task!r}; "
+                "report them separately"
+            )
+
+
+def _swap_into_place(tmp: Path, out: Path) -> None:
+    old = None
+    if out.exists():
+        old = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.old-"))
+        os.rmdir(old)
+        os.replace(out, old)
+    os.replace(tmp, out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+# ----------------------------------------------------------------------------- the report
+def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: list[str]) -> None:
+    (folder / "tables").mkdir(parents=True)
+    (folder / "figures").mkdir()
+    tasks, methods = sort_tasks(r.task for r in runs), sort_methods(r.label for r in runs)
+    runs = sorted(runs, key=lambda r: (tasks.index(r.task), methods.index(r.label), str(r.path)))
+    fixed = [r for r in runs if r.algo == FIXED_RANK]
+    main = [r for r in runs if r.algo != FIXED_RANK] or fixed
+    finals = {r.path: collect.final_scores(r) for r in runs}
+    for r in runs:
+        if finals[r.path][0].empty:
+            notes.append(
+                f"{r.path} has no nominal evaluation (neither `adarl evaluate --dynamics nominal` "
+                "of its final checkpoint nor `nominal` rows in eval.csv); it is left out of the tables."
+            )
+    scores = _long_scores(main, finals)
+    colours = figures.method_colours([r.label for r in runs])
+
+    sections = [runs_section(runs, finals, folder)]
+    sections.append(table1_section(scores, folder))
+    sections += statistics_sections(scores, folder, options, notes)
+    sections.append(training_section(main, folder, colours))
+    sections.append(rank_section(runs, folder))
+    sections.append(robustness_section(runs, folder, colours, notes))
+    sections.append(bias_variance_section(fixed, runs, finals, folder))
+    sections.append(ablation_section(runs, folder))
+    sections.append(spectra_section(runs, folder))
+    sections.append(policy_size_section(runs, folder))
+    write_index(folder, runs, sections, options, notes)
+
+
+def _long_scores(runs: Sequence[Run], finals: dict) -> pd.DataFrame:
+    frames = [
+        finals[r.path][0].assign(task=r.task, method=r.label, run=str(r.path))
+        for r in runs
+        if not finals[r.path][0].empty
+    ]
+    if not frames:
+        return pd.DataFrame(columns=["seed", "score", "task", "method", "run"])
+    return pd.concat(frames, ignore_index=True)
+
+
+def _write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _figure(folder: Path, fig, stem: str) -> list[Path]:
+    return figures.save_figure(fig, folder / "figures" / _slug(stem))
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-")
+
+
+def intrinsic_rank(run: Run) -> int | None:
+    """2·d_a+1 of the run's task (from `adarl.envs`, else the config), None if unknown."""
+    try:
+        from adarl.envs import get_task
+
+        return int(get_task(run.task).intrinsic_rank)
+    except (ImportError, AttributeError, KeyError, TypeError, UsageError):
+        value = config_value(run.config, "intrinsic_rank")
+        return None if value is None else int(value)
+
+
+# ----------------------------------------------------------------------------- sections
+def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
+    rows = []
+    for r in runs:
+        last = collect.final_step(r)
+        rows.append(
+            {
+                "run": str(r.path),
+                "task": r.task,
+                "method": r.label,
+                "training dynamics": r.dynamics,
+                "seeds": " ".join(map(str, r.seeds)),
+                "budget (steps per seed)": r.total_steps,
+                "final checkpoint": last,
+                "finished": "yes" if r.done_step is not None else "no",
+                "final return from": finals[r.path][1],
+            }
+        )
+    df = pd.DataFrame(rows)
+    path = _write(folder, "tables/runs.csv", df.to_csv(index=False))
+    text = tables.markdown_table(
+        list(df.columns), df.astype(object).where(df.notna(), "—").values.tolist()
+    )
+    return Section("Runs", text, [path])
+
+
+def table1_section(scores: pd.DataFrame, folder: Path) -> Section:
+    if scores.empty:
+        return Section(
+            "Table 1: final return under nominal dynamics", "No nominal evaluations found.\n"
+        )
+    table = tables.score_table(scores)
+    caption = "Final return under nominal dynamics, mean ± standard deviation over seeds."
+    files = [
+        _write(folder, "tables/table1.md", tables.table_markdown(table)),
+        _write(folder, "tables/table1.tex", tables.table_latex(table, caption=caption)),
+        _write(folder, "tables/table1.csv", tables.table_csv(table)),
+    ]
+    text = (
+        f"{caption} The best mean per task is in bold. Seeds per cell: "
+        f"{_seed_counts(table)}.\n\n{tables.table_markdown(table)}"
+    )
+    return Section("Table 1: final return under nominal dynamics", text, files)
+
+
+def _seed_counts(table: tables.ScoreTable) -> str:
+    counts = sorted({int(c) for c in table.count.to_numpy().ravel() if c > 0})
+    return ", ".join(map(str, counts))
+
+
+def score_matrix(scores: pd.DataFrame, method: str, tasks: Sequence[str]) -> np.ndarray:
+    """`(n_seeds, n_tasks)` scores of one method; every task keeps the same number of seeds
+    (the smallest count over `tasks`, lowest seeds first)."""
+    columns = []
+    for task in tasks:
+        rows = scores[(scores["method"] == method) & (scores["task"] == task)].sort_values("seed")
+        columns.append(rows["score"].to_numpy(float))
+    n = min(len(c) for c in columns)
+    return np.stack([c[:n] for c in columns], axis=1)
+
+
+def statistics_sections(
+    scores: pd.DataFrame, folder: Path, options: ReportOptions, notes: list[str]
+) -> list[Section]:
+    if scores.empty:
+        return []
+    tasks = sort_tasks(scores["task"])
+    methods = sort_methods(scores["method"])
+    covering = [m for m in methods if set(tasks) <= set(scores.loc[scores["method"] == m, "task"])]
+    left_out = [m for m in methods if m not in covering]
+    if left_out:
+        notes.append(
+            "Aggregate statistics and performance profiles cover methods run on every task "
+            f"({', '.join(tasks)}); left out: {', '.join(left_out)}."
+        )
+    reps, conf = options.bootstrap_reps, options.confidence
+    low = scores.groupby("task")["score"].min().reindex(tasks).to_numpy()
+    high = scores.groupby("task")["score"].max().reindex(tasks).to_numpy()
+    normalised = {
+        m: stats.minmax_normalise(score_matrix(scores, m, tasks), low, high) for m in covering
+    }
+    for m in covering:
+        counts = scores[scores["method"] == m].groupby("task").size()
+        if counts.nunique() > 1:
+            notes.append(
+                f"{m}: tasks have different seed counts; aggregates use the first {counts.min()} seeds of each."
+            )
+
+    # aggregate (normalised, across tasks)
+    rows = []
+    for i, m in enumerate(covering):
+        for metric, fn in (("IQM", stats.iqm), ("Mean", stats.mean)):
+            ci = stats.bootstrap_ci(normalised[m], fn, reps, conf, options.seed + i)
+            rows.append(
+                {
+                    "method": m,
+                    "metric": metric,
+                    "point": ci.point,
+                    "low": ci.low,
+                    "high": ci.high,
+                    "runs": normalised[m].shape[0],
+                    "tasks": len(tasks),
+                }
+            )
+    aggregate = pd.DataFrame(rows)
+    files = [
+        _write(folder, "tables/aggregate.csv", aggregate.to_csv(index=False, float_format="%.6g"))
+    ]
+    text = (
+        f"Final returns min–max normalised per task over all methods and seeds "
+        f"(0 = the lowest, 1 = the highest seed's return on that task), then aggregated over "
+        f"{len(tasks)} task(s) and their seeds. Intervals: {conf:.0%} stratified bootstrap "
+        f"({reps} resamples, seed {options.seed}).\n\n"
+    )
+    if not aggregate.empty:
+        md = tables.markdown_table(
+            ["method", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI", "runs × tasks"],
+            [
+                [
+                    m,
+                    _r(aggregate, m, "IQM", "point"),
+                    _ci(aggregate, m, "IQM"),
+                    _r(aggregate, m, "Mean", "point"),
+                    _ci(aggregate, m, "Mean"),
+                    f"{normalised[m].shape[0]} × {len(tasks)}",
+                ]
+                for m in covering
+            ],
+        )
+        files.append(_write(folder, "tables/aggregate.md", md))
+        files += _figure(folder, figures.aggregate_intervals(aggregate), "aggregate_iqm_mean")
+        text += md
+    sections = [Section("Aggregate statistics (rliable)", text, files)]
+
+    # per task, raw returns
+    rows = []
+    for t_i, task in enumerate(tasks):
+        for m_i, m in enumerate(methods):
+            sub = scores[(scores["method"] == m) & (scores["task"] == task)]
+            if sub.empty:
+                continue
+            matrix = sub["score"].to_numpy(float)[:, None]
+            seed = options.seed + 1000 + 100 * t_i + m_i
+            iqm = stats.bootstrap_ci(matrix, stats.iqm, reps, conf, seed)
+            mean = stats.bootstrap_ci(matrix, stats.mean, reps, conf, seed)
+            rows.append(
+                {
+                    "task": task,
+                    "method": m,
+                    "seeds": len(sub),
+                    "iqm": iqm.point,
+                    "iqm_low": iqm.low,
+                    "iqm_high": iqm.high,
+                    "mean": mean.point,
+                    "mean_low": mean.low,
+                    "mean_high": mean.high,
+                }
+            )
+    per_task = pd.DataFrame(rows)
+    md = tables.markdown_table(
+        ["task", "method", "seeds", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI"],
+        [
+            [
+                r.task,
+                r.method,
+                r.seeds,
+                f"{r.iqm:.1f}",
+                f"[{r.iqm_low:.1f}, {r.iqm_high:.1f}]",
+                f"{r.mean:.1f}",
+                f"[{r.mean_low:.1f}, {r.mean_high:.1f}]",
+            ]
+            for r in per_task.itertuples()
+        ],
+    )
+    sections.append(
+        Section(
+            "Per-task IQM and mean (raw returns)",
+            md,
+            [
+                _write(
+                    folder, "tables/per_task.csv", per_task.to_csv(index=False, float_format="%.6g")
+                ),
+                _write(folder, "tables/per_task.md", md),
+            ],
+        )
+    )
+
+    # probability of improvement of AdaRL over each baseline, on the tasks both ran
+    if REFERENCE in methods:
+        rows = []
+        ref_tasks = set(scores.loc[scores["method"] == REFERENCE, "task"])
+        for i, m in enumerate(m for m in methods if m != REFERENCE):
+            common = [
+                t
+                for t in tasks
+                if t in ref_tasks and t in set(scores.loc[scores["method"] == m, "task"])
+            ]
+            if not common:
+                continue
+            x, y = score_matrix(scores, REFERENCE, common), score_matrix(scores, m, common)
+            ci = stats.probability_of_improvement_ci(x, y, reps, conf, options.seed + 2000 + i)
+            rows.append(
+                {
+                    "baseline": m,
+                    "tasks": " ".join(common),
+                    "point": ci.point,
+                    "low": ci.low,
+                    "high": ci.high,
+                }
+            )
+        if rows:
+            poi = pd.DataFrame(rows)
+            md = tables.markdown_table(
+                ["comparison", "tasks", "P(X > Y)", f"{conf:.0%} CI"],
+                [
+                    [
+                        f"{REFERENCE} > {r.baseline}",
+                        r.tasks,
+                        f"{r.point:.3f}",
+                        f"[{r.low:.3f}, {r.high:.3f}]",
+                    ]
+                    for r in poi.itertuples()
+                ],
+            )
+            text = (
+                f"Probability that a random seed of {REFERENCE} ends with a higher return than a random "
+                "seed of the baseline on the same task (ties count ½), averaged over the tasks both "
+                "ran; 0.5 means no difference. Intervals: stratified bootstrap, each method "
+                f"resampled independently.\n\n{md}"
+            )
+            files = [
+                _write(
+                    folder,
+                    "tables/probability_of_improvement.csv",
+                    poi.to_csv(index=False, float_format="%.6g"),
+                ),
+                _write(folder, "tables/probability_of_improvement.md", md),
+            ]
+            files += _figure(
+                folder,
+                figures.probability_of_improvement(poi, REFERENCE),
+                "probability_of_improvement",
+            )
+            sections.append(Section("Probability of improvement", text, files))
+    else:
+        notes.append(f"No {REFERENCE!r} runs: probability of improvement is not computed.")
+
+    # performance profiles
+    if covering:
+        taus = np.linspace(0.0, 1.0, 101)
+        profiles = {
+            m: stats.performance_profile_ci(
+                normalised[m], taus, reps, conf, options.seed + 3000 + i
+            )
+            for i, m in enumerate(covering)
+        }
+        frame = pd.DataFrame({"tau": taus})
+        for m, (p, lo, hi) in profiles.items():
+            frame[m], frame[f"{m} low"], frame[f"{m} high"] = p, lo, hi
+        files = [
+            _write(
+                folder,
+                "tables/performance_profiles.csv",
+                frame.to_csv(index=False, float_format="%.6g"),
+            )
+        ]
+        files += _figure(
+            folder, figures.performance_profiles(taus, profiles), "performance_profiles"
+        )
+        sections.append(
+            Section(
+                "Performance profiles",
+                "Fraction of runs (seeds × tasks) whose normalised final return exceeds τ, with "
+                f"{conf:.0%} stratified-bootstrap bands.\n",
+                files,
+            )
+        )
+    return sections
+
+
+def _r(df, method, metric, column):
+    return f"{df[(df['method'] == method) & (df['metric'] == metric)][column].iloc[0]:.3f}"
+
+
+def _ci(df, method, metric):
+    return f"[{_r(df, method, metric, 'low')}, {_r(df, method, metric, 'high')}]"
+
+
+def training_section(runs: list[Run], folder: Path, colours) -> Section:
+    curves: dict[str, dict[str, list[pd.DataFrame]]] = {}
+    truncations: dict[str, set[int]] = {}
+    sources = set()
+    for r in runs:
+        curve, source = collect.training_curve(r)
+        if curve.empty:
+            continue
+        sources.add(source)
+        curves.setdefault(r.task, {}).setdefault(r.label, []).append(curve)
+        truncations.setdefault(r.task, set()).update(collect.truncation_steps(r))
+    if not curves:
+        return Section("Training curves", "No evaluation or episode logs found.\n")
+    tasks = sort_tasks(curves)
+    merged = {t: {m: pd.concat(frames) for m, frames in curves[t].items()} for t in tasks}
+    fig = figures.training_curves(
+        merged, {t: sorted(truncations.get(t, ())) for t in tasks}, colours
+    )
+    files = _figure(folder, fig, "training_curves")
+    text = (
+        "Return over training (source: " + "; ".join(sorted(sources)) + "), mean over seeds with a "
+        "95% t band; red dashed lines mark the steps at which rank-adaptive runs truncated.\n"
+    )
+    return Section("Training curves", text, files)
+
+
+def rank_section(runs: list[Run], folder: Path) -> Section:
+    files, lines = [], []
+    for r in runs:
+        history, steps = collect.rank_history(r), collect.truncation_steps(r)
+        if history.empty or not steps:
+            continue
+        fig = figures.rank_trajectories(history, intrinsic_rank(r), f"{r.task} {r.label}", steps)
+        files += _figure(folder, fig, f"ranks_{r.task}_{r.label}")
+        final = collect.final_ranks(r)
+        per_layer = final.groupby("layer")["rank"].agg(lambda s: " ".join(str(int(v)) for v in s))
+        lines.append(
+            f"- {r.task} {r.label} ({r.path}): final rank per seed — "
+            + "; ".join(f"{layer}: {ranks}" for layer, ranks in per_layer.items())
+            + f"; intrinsic rank 2·d_a+1 = {intrinsic_rank(r)}"
+        )
+    if not files:
+        return Section("Rank over training", "No rank-adaptive runs.\n")
+    text = (
+        "Estimated rank of each bottleneck, per seed; dotted line: 2·d_a+1.\n\n"
+        + "\n".join(lines)
+        + "\n"
+    )
+    return Section("Rank over training", text, files)
+
+
+def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str]) -> Section:
+    groups: dict[tuple[str, str, str], list[pd.DataFrame]] = {}
+    held: dict[tuple[str, str, str], str] = {}
+    nominal: dict[tuple[str, str], float] = {}
+    for r in runs:
+        for ev in collect.evaluations(r):
+            swept = ev.swept
+            if not swept:
+                for c in ev.table.columns:
+                    if (
+                        c.startswith("p_")
+                        and ev.meta.get("dynamics") == "nominal"
+                        and not ev.meta.get("hold")
+                    ):
+                        nominal[(r.task, c[2:])] = float(ev.table[c].iloc[0])
+                continue
+            if len(swept) > 1:
+                notes.append(
+                    f"{r.path}/evaluations/{ev.name}.csv sweeps {len(swept)} parameters; "
+                    "only one-parameter sweeps are drawn."
+                )
+                continue
+            param = swept[0]
+            values = _swept_values(ev.table, param)
+            per_seed = (
+                ev.table.assign(value=values)
+                .groupby(["seed", "value"], as_index=False)["return"]
+                .mean()
+            )
+            key = (r.task, ev.name, param)
+            groups.setdefault(key, []).append(per_seed.assign(method=r.label))
+            held[key] = ", ".join(f"{k}={v:g}" for k, v in (ev.meta.get("hold") or {}).items())
+    if not groups:
+        return Section(
+            "Robustness",
+            "No sweeps found; run `adarl evaluate RUN --sweep P=LO:HI:N` to add them.\n",
+        )
+    files, lines = [], []
+    order = sort_tasks(k[0] for k in groups)
+    for key in sorted(groups, key=lambda k: (order.index(k[0]), k[1], k[2])):
+        task, name, param = key
+        data = pd.concat(groups[key], ignore_index=True)
+        title = f"{task}: {param}" + (f" (held: {held[key]})" if held[key] else "")
+        fig = figures.robustness_curve(data, param, title, nominal.get((task, param)), colours)
+        files += _figure(folder, fig, f"robustness_{task}_{name}")
+        lines.append(f"- {title}: {', '.join(sort_methods(data['method'].unique()))}")
+    text = (
+        "Return against each swept parameter (mean over seeds of each seed's mean over episodes, "
+        "95% t band); grey dotted line: the nominal value.\n\n" + "\n".join(lines) + "\n"
+    )
+    return Section("Robustness", text, files)
+
+
+def _swept_values(table: pd.DataFrame, param: str) -> np.ndarray:
+    column = f"p_{param}"
+    if column in table:
+        return table[column].to_numpy(float).round(9)
+    pattern = re.compile(rf"(?:^|[:,]){re.escape(param)}=([^,]+)")
+    return np.array([float(pattern.search(str(label)).group(1)) for label in table["dynamics"]])
+
+
+def bias_variance_section(fixed: list[Run], runs: list[Run], finals: dict, folder: Path) -> Section:
+    if not fixed:
+        return Section("Bias–variance", "No `sac-fixed-rank` runs.\n")
+    files, texts = [], []
+    for task in sort_tasks(r.task for r in fixed):
+        frames = []
+        for r in (r for r in fixed if r.task == task):
+            scores = finals[r.path][0]
+            rank = config_value(r.config, "rank")
+            if not scores.empty and rank is not None:
+                frames.append(scores.assign(rank=int(rank)))
+        if not frames:
+            continue
+        data = pd.concat(frames, ignore_index=True)
+        adarl = [r for r in runs if r.task == task and r.label == REFERENCE]
+        ranks, adarl_scores = [], []
+        for r in adarl:
+            final = collect.final_ranks(r)
+            actor = final[final["layer"].str.startswith("actor")] if not final.empty else final
+            ranks += (actor if not actor.empty else final)["rank"].astype(float).tolist()
+            adarl_scores += finals[r.path][0]["score"].tolist()
+        intrinsic = intrinsic_rank(fixed[0])
+        fig = figures.bias_variance(
+            data, ranks or None, adarl_scores or None, intrinsic, f"{task}: return against rank"
+        )
+        files += _figure(folder, fig, f"bias_variance_{task}")
+        table = tables.score_table(
+            data.assign(task=task, method=data["rank"].map(lambda k: f"r={k}"))
+        )
+        rows = [[f"r={k}", table.cell(task, f"r={k}")] for k in sorted(data["rank"].unique())]
+        md = tables.markdown_table(["rank", f"{task}: final return"], rows)
+        texts.append(md)
+        files.append(_write(folder, f"tables/fixed_rank_{_slug(task)}.md", md))
+        files.append(
+            _write(
+                folder,
+                f"tables/fixed_rank_{_slug(task)}.csv",
+                data.to_csv(index=False, float_format="%.6g"),
+            )
+        )
+        if ranks:
+            texts.append(
+                f"AdaRL's converged actor rank on {task}: {', '.join(f'{v:g}' for v in ranks)} (per seed).\n"
+            )
+    text = (
+        "Final nominal return of SAC with a fixed-rank bottleneck, against the rank (mean and 95% t "
+        "interval over seeds); AdaRL's converged rank is marked.\n\n" + "\n".join(texts)
+    )
+    return Section("Bias–variance", text, files)
+
+
+def ablation_section(runs: list[Run], folder: Path) -> Section:
+    files, lines = [], []
+    adarl = [r for r in runs if r.algo == "adarl"]
+    for task in sort_tasks(r.task for r in adarl):
+        histories: dict[str, list[pd.DataFrame]] = {}
+        steps: set[int] = set()
+        for r in (r for r in adarl if r.task == task):
+            history = collect.rank_history(r)
+            if not history.empty:
+                rule = str(config_value(r.config, "rank_rule", "cumulative"))
+                histories.setdefault(f"{rule} rule", []).append(history)
+                steps.update(collect.truncation_steps(r))
+        if len(histories) < 2:
+            continue
+        merged = {rule: pd.concat(h, ignore_index=True) for rule, h in sorted(histories.items())}
+        fig = figures.rank_rule_ablation(merged, intrinsic_rank(adarl[0]), task, sorted(steps))
+        files += _figure(folder, fig, f"rank_rule_ablation_{task}")
+        for rule, h in merged.items():
+            last = h.sort_values("step").groupby(["seed", "layer"])["rank"].last()
+            lines.append(f"- {task}, {rule}: final ranks {sorted(int(v) for v in last)}")
+    if not files:
+        return Section(
+            "Rank-rule ablation", "Needs `adarl` runs with both rank rules on one task.\n"
+        )
+    return Section(
+        "Rank-rule ablation",
+        "Rank over training under each rank rule (mean over seeds, 95% t band).\n\n"
+        + "\n".join(lines)
+        + "\n",
+        files,
+    )
+
+
+def spectra_section(runs: list[Run], folder: Path) -> Section:
+    files = []
+    for r in runs:
+        found = collect.spectra(r)
+        if found:
+            fig = figures.singular_value_spectra(found, f"{r.task} {r.label}")
+            files += _figure(folder, fig, f"spectra_{r.task}_{r.label}")
+    text = (
+        "Singular values of each bottleneck at each truncation (mean over seeds).\n"
+        if files
+        else "No spectra recorded.\n"
+    )
+    return Section("Singular-value spectra", text, files)
+
+
+def policy_size_section(runs: list[Run], folder: Path) -> Section:
+    frames = [
+        collect.policy_sizes(r).assign(run=str(r.path), task=r.task, method=r.label) for r in runs
+    ]
+    data = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    if data.empty:
+        return Section("Policy size", "No policy files found.\n")
+    rows = []
+    for (run, task, method), g in data.groupby(["run", "task", "method"], sort=False):
+        after, before = g["n_params"].to_numpy(), g["n_params_full"].to_numpy()
+        span = f"{after.min()}" if after.min() == after.max() else f"{after.min()}–{after.max()}"
+        rows.append(
+            [
+                task,
+                method,
+                run,
+                int(before.max()),
+                span,
+                f"{100 * after.mean() / before.mean():.1f}%",
+            ]
+        )
+    md = tables.markdown_table(
+        ["task", "method", "run", "full rank", "after adaptation", "kept"], rows
+    )
+    files = [
+        _write(folder, "tables/policy_size.csv", data.to_csv(index=False)),
+        _write(folder, "tables/policy_size.md", md),
+    ]
+    text = (
+        "Parameters of the deterministic policy (as exported by `adarl export`) at full rank and at the "
+        "final checkpoint, over seeds.\n\n" + md
+    )
+    return Section("Policy size", text, files)
+
+
+# ----------------------------------------------------------------------------- index.md
+def write_index(
+    folder: Path, runs: list[Run], sections: list[Section], options: ReportOptions, notes: list[str]
+) -> None:
+    order = sort_tasks(r.task for r in runs)
+    methods = sort_methods(r.label for r in runs)
+    budgets = sorted(
+        {(r.task, r.label, r.total_steps, " ".join(map(str, r.seeds))) for r in runs},
+        key=lambda b: (order.index(b[0]), methods.index(b[1]), str(b[2]), b[3]),
+    )
+    lines = [
+        MARKER,
+        "# adarl report",
+        "",
+        f"Made by adarl {__version__} from {len(runs)} run folder(s).",
+        "",
+        "## Budget and seeds",
+        "",
+        tables.markdown_table(
+            ["task", "method", "steps per seed", "seeds"],
+            [[t, m, f"{s:,}" if s is not None else "—", seeds] for t, m, s, seeds in budgets],
+        ),
+    ]
+    for section in sections:
+        lines += ["", f"## {section.title}", "", section.text.rstrip()]
+        pngs = [f for f in section.files if f.suffix == ".png"]
+        others = [f for f in section.files if f.suffix not in (".png", ".pdf")]
+        for png in pngs:
+            rel = png.relative_to(folder).as_posix()
+            lines += [
+                "",
+                f"![{png.stem}]({rel}) ([PDF]({Path(rel).with_suffix('.pdf').as_posix()}))",
+            ]
+        if others:
+            lines += [
+                "",
+                "Files: "
+                + ", ".join(f"[{f.name}]({f.relative_to(folder).as_posix()})" for f in others),
+            ]
+    lines += ["", "## Commands", "", "Training:", "", "```sh"]
+    lines += [r.command or f"# {r.path}: no command recorded in config.yaml" for r in runs]
+    lines += ["```"]
+    evaluations = [ev.meta.get("command") for r in runs for ev in collect.evaluations(r)]
+    evaluations = list(dict.fromkeys(c for c in evaluations if c))
+    if evaluations:
+        lines += ["", "Evaluation:", "", "```sh", *evaluations, "```"]
+    lines += ["", "This report:", "", "```sh", options.command or "adarl report …", "```"]
+    if notes:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
+    _write(folder, INDEX, "\n".join(lines) + "\n")

@@ -1,0 +1,322 @@
+"""Finding run folders and reading what evaluation needs from them: the config, the seeds, the
+checkpoint to use and its policy files, and a method label that tells runs apart in a report.
+
+The layout of a run folder is fixed by docs/run-format.md.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import yaml
+
+from adarl.errors import UsageError
+from adarl.train.io import checkpoint_dirs
+
+CONFIG_FILE = "config.yaml"
+POLICY_PATTERN = re.compile(r"^policy_seed_(\d+)\.npz$")
+
+# config fields that say how a run was launched, not what was trained; runs differing only in
+# these are the same method
+_LAUNCH_KEYS = {
+    "seeds",
+    "seed",
+    "out",
+    "out_dir",
+    "run_dir",
+    "resume",
+    "command",
+    "adarl_version",
+    "format_version",
+    "created",
+    "started",
+    "host",
+    "hostname",
+    "progress",
+    "total_steps",
+}
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run folder: its path, its parsed config.yaml and its method label."""
+
+    path: Path
+    config: dict = field(compare=False, repr=False)
+    label: str = ""
+
+    @property
+    def task(self) -> str:
+        return str(config_value(self.config, "task"))
+
+    @property
+    def algo(self) -> str:
+        return str(config_value(self.config, "algo"))
+
+    @property
+    def dynamics(self) -> str:
+        """The dynamics the run trained under (e.g. `paper`)."""
+        return str(config_value(self.config, "dynamics", "?"))
+
+    @property
+    def seeds(self) -> list[int]:
+        return parse_seeds(config_value(self.config, "seeds"))
+
+    @property
+    def total_steps(self) -> int | None:
+        value = config_value(self.config, "total_steps")
+        return None if value is None else int(float(value))
+
+    @property
+    def command(self) -> str | None:
+        value = config_value(self.config, "command")
+        if isinstance(value, list | tuple):
+            return " ".join(str(v) for v in value)
+        return None if value is None else str(value)
+
+    @property
+    def done_step(self) -> int | None:
+        """The final step recorded in DONE, or None while the run is unfinished."""
+        done = self.path / "DONE"
+        if not done.is_file():
+            return None
+        text = done.read_text(encoding="utf-8").strip()
+        try:
+            return int(float(text.split()[0])) if text else -1
+        except ValueError:
+            return -1
+
+
+def config_value(config: dict, key: str, default=None):
+    """`config[key]`, else the first `key` found in a nested section (breadth first), else
+    `default`. Trainers may write a flat or a sectioned config; readers should not care."""
+    queue = [config]
+    while queue:
+        node = queue.pop(0)
+        if key in node:
+            return node[key]
+        queue.extend(v for v in node.values() if isinstance(v, dict))
+    return default
+
+
+def flatten_config(config: dict, prefix: str = "") -> dict[str, object]:
+    """`{"a": {"b": 1}}` -> `{"a.b": 1}` (lists kept as values)."""
+    flat = {}
+    for key, value in config.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            flat.update(flatten_config(value, name + "."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def parse_seeds(value) -> list[int]:
+    """Seeds as written in a config: a list, an int, or a string such as `0-4` or `0,2,5`."""
+    if value is None:
+        return []
+    if isinstance(value, int):
+        return [value]
+    if isinstance(value, list | tuple):
+        return [int(v) for v in value]
+    seeds: list[int] = []
+    try:
+        for part in str(value).replace(" ", "").split(","):
+            if not part:
+                continue
+            lo, sep, hi = part.partition("-")
+            seeds.extend(range(int(lo), int(hi) + 1) if sep else [int(lo)])
+    except ValueError:
+        raise UsageError(f"seeds {value!r} are not a list like 0-4 or 0,2,5") from None
+    return seeds
+
+
+# ----------------------------------------------------------------------------- finding runs
+def is_run(path: str | os.PathLike) -> bool:
+    return (Path(path) / CONFIG_FILE).is_file()
+
+
+def load_run(path: str | os.PathLike) -> Run:
+    """Read a run folder's config; a one-line `UsageError` if the folder is not a run."""
+    path = Path(path)
+    if not path.is_dir():
+        raise UsageError(f"{path} is not a folder")
+    if not is_run(path):
+        raise UsageError(f"{path} is not a run folder (it has no {CONFIG_FILE})")
+    try:
+        config = yaml.safe_load((path / CONFIG_FILE).read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise UsageError(f"{path / CONFIG_FILE} is unreadable ({type(exc).__name__})") from exc
+    if not isinstance(config, dict):
+        raise UsageError(f"{path / CONFIG_FILE} is not a mapping of config fields")
+    for key in ("algo", "task"):
+        if config_value(config, key) is None:
+            raise UsageError(f"{path / CONFIG_FILE} has no {key!r} field; is {path} a run folder?")
+    return Run(path=path, config=config, label=method_label(config))
+
+
+def find_runs(paths: Iterable[str | os.PathLike]) -> list[Run]:
+    """Runs named by `paths`: each is a run folder, or a folder holding run folders at any depth
+    (a sweep's output). Hidden folders are skipped. A path with no run raises `UsageError`."""
+    runs: dict[Path, Run] = {}
+    for raw in paths:
+        path = Path(raw)
+        if not path.exists():
+            raise UsageError(f"{path} does not exist")
+        if not path.is_dir():
+            raise UsageError(f"{path} is not a folder")
+        if is_run(path):
+            found = [path]
+        else:
+            found = sorted(
+                p.parent
+                for p in path.rglob(CONFIG_FILE)
+                if not any(part.startswith(".") for part in p.relative_to(path).parts[:-1])
+            )
+            # a run folder's own subfolders are never runs
+            found = [p for p in found if not any(q in p.parents for q in found)]
+            if not found:
+                raise UsageError(
+                    f"{path} is not a run folder and holds none (no {CONFIG_FILE} below it)"
+                )
+        for p in found:
+            runs.setdefault(p.resolve(), load_run(p))
+    return label_runs(list(runs.values()))
+
+
+# ----------------------------------------------------------------------------- method labels
+def method_label(config: dict) -> str:
+    """The name a run's method has in tables and legends: the algo, plus the setting that makes
+    a variant (the rank of `sac-fixed-rank`, a non-default rank rule of `adarl`)."""
+    algo = str(config_value(config, "algo"))
+    if algo == "sac-fixed-rank":
+        rank = config_value(config, "rank")
+        return f"sac-fixed-rank r={rank}" if rank is not None else algo
+    if algo == "adarl":
+        rule = str(config_value(config, "rank_rule", "cumulative"))
+        return algo if rule == "cumulative" else f"adarl ({rule} rule)"
+    return algo
+
+
+def label_runs(runs: list[Run]) -> list[Run]:
+    """Give runs of the same task and method that share seeds distinct labels.
+
+    Runs that agree on task and label and cover disjoint seeds are pooled (one method, more
+    seeds). When their seeds overlap, the config fields that differ between them are appended to
+    the label (`sac-parseval (coef=1e-05)`); if nothing differs, the same runs were passed twice
+    under different folders and a `UsageError` names them.
+    """
+    groups: dict[tuple[str, str], list[int]] = {}
+    for i, run in enumerate(runs):
+        groups.setdefault((run.task, run.label), []).append(i)
+    out = list(runs)
+    for (task, label), members in groups.items():
+        if len(members) < 2 or not _seeds_overlap([runs[i] for i in members]):
+            continue
+        flats = [flatten_config(runs[i].config) for i in members]
+        keys = sorted(set().union(*flats))
+        differing = [
+            k
+            for k in keys
+            if k.split(".")[-1] not in _LAUNCH_KEYS and len({repr(f.get(k)) for f in flats}) > 1
+        ]
+        for i, flat in zip(members, flats):
+            extra = ", ".join(f"{k.split('.')[-1]}={flat.get(k)}" for k in differing)
+            out[i] = replace(runs[i], label=f"{label} ({extra})" if extra else label)
+        relabelled: dict[str, list[Run]] = {}
+        for i in members:
+            relabelled.setdefault(out[i].label, []).append(out[i])
+        for same in relabelled.values():
+            if _seeds_overlap(same):
+                a, b = _overlapping_pair(same)
+                raise UsageError(
+                    f"runs {a.path} and {b.path} are both {label!r} on {task} with seed(s) "
+                    f"{sorted(set(a.seeds) & set(b.seeds))}; pass only one of them"
+                )
+    return out
+
+
+def _seeds_overlap(runs: list[Run]) -> bool:
+    return _overlapping_pair(runs) is not None
+
+
+def _overlapping_pair(runs: list[Run]):
+    for i, a in enumerate(runs):
+        for b in runs[i + 1 :]:
+            sa, sb = set(a.seeds), set(b.seeds)
+            if (sa & sb) or not sa or not sb:
+                return a, b
+    return None
+
+
+# ----------------------------------------------------------------------------- checkpoints
+def checkpoint_step(checkpoint: Path) -> int:
+    return int(checkpoint.name.split("_")[1])
+
+
+def select_checkpoint(run: Run, step: int | None = None) -> Path:
+    """The final complete checkpoint of `run`, or the one at `step`; `UsageError` otherwise."""
+    found = checkpoint_dirs(run.path)
+    if not found:
+        raise UsageError(
+            f"run folder {run.path} has no complete checkpoint (checkpoints/step_*/meta.json)"
+        )
+    if step is None:
+        return found[-1]
+    for checkpoint in found:
+        if checkpoint_step(checkpoint) == step:
+            return checkpoint
+    steps = ", ".join(str(checkpoint_step(c)) for c in found)
+    raise UsageError(f"run folder {run.path} has no checkpoint at step {step}; it has: {steps}")
+
+
+def policy_files(checkpoint: Path) -> dict[int, Path]:
+    """`{seed: policy file}` of a checkpoint folder (`policy_seed_<s>.npz`), sorted by seed."""
+    found = {}
+    for p in checkpoint.iterdir():
+        m = POLICY_PATTERN.match(p.name)
+        if m:
+            found[int(m.group(1))] = p
+    if not found:
+        raise UsageError(f"checkpoint {checkpoint} holds no policy_seed_<s>.npz file")
+    return dict(sorted(found.items()))
+
+
+def policy_file(run: Run, seed: int, step: int | None = None) -> Path:
+    """The policy file of one seed at the final (or chosen) checkpoint."""
+    files = policy_files(select_checkpoint(run, step))
+    if seed not in files:
+        allowed = ", ".join(map(str, files))
+        raise UsageError(f"run folder {run.path} has no seed {seed}; it has seeds: {allowed}")
+    return files[seed]
+
+
+# ----------------------------------------------------------------------------- display order
+TASK_ORDER = ("hopper", "walker2d", "ant", "humanoid")
+METHOD_ORDER = ("adarl", "sac", "sac-parseval", "sac-sparse", "rnac")
+
+
+def sort_tasks(tasks: Iterable[str]) -> list[str]:
+    """The paper's task order, then any other task alphabetically."""
+    return sorted(set(tasks), key=lambda t: (TASK_ORDER.index(t) if t in TASK_ORDER else 99, t))
+
+
+def sort_methods(methods: Iterable[str]) -> list[str]:
+    """AdaRL first, then the paper's baselines, then variants (ablations, fixed ranks by rank)."""
+
+    def key(label: str):
+        base = label.split(" ")[0]
+        rank = re.search(r"r=(\d+)", label)
+        return (
+            METHOD_ORDER.index(base) if base in METHOD_ORDER else len(METHOD_ORDER),
+            label != base,
+            base,
+            int(rank.group(1)) if rank else 0,
+            label,
+        )
+
+    return sorted(set(methods), key=key)

@@ -1,0 +1,138 @@
+"""`adarl report`: a full report from synthetic run folders, and bad input (exit code 2, one
+line on stderr, nothing half-written)."""
+
+import pandas as pd
+import pytest
+
+from adarl.cli.main import main
+from adarl.evaluation import report
+from adarl.evaluation.synthetic import write_run, write_sweep
+
+TORSO = [0.2, 0.4, 0.6]
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    """A sweep-like output folder: runs at different depths, as `adarl sweep` might write."""
+    root = tmp_path_factory.mktemp("sweep")
+    for task in ("hopper", "walker2d"):
+        write_run(root / task, "adarl", task=task, quality=1.0)
+        write_run(root / task, "sac", algo="sac", task=task, quality=0.8)
+    write_run(root / "hopper", "ratio", algo="adarl", rank_rule="ratio", quality=0.7)
+    for rank in (2, 16):
+        write_run(root / "fixed-rank", f"r{rank}", algo="sac-fixed-rank", rank=rank, quality=rank / 16)
+    for name, quality in (("adarl", 1.0), ("sac", 0.8)):
+        write_sweep(root / "hopper" / name, "torso_length", TORSO, hold={"foot_length": 0.39}, quality=quality)
+    return root
+
+
+@pytest.fixture(scope="module")
+def built(sweep, tmp_path_factory):
+    out = tmp_path_factory.mktemp("reports") / "report"
+    assert main(["report", str(sweep), "--out", str(out), "--bootstrap-reps", "200"]) == 0
+    return out
+
+
+def test_report_writes_every_table_and_figure(built):
+    tables = {p.name for p in (built / "tables").iterdir()}
+    assert {"table1.md", "table1.tex", "table1.csv", "aggregate.md", "aggregate.csv",
+            "per_task.csv", "probability_of_improvement.csv", "performance_profiles.csv",
+            "policy_size.md", "runs.csv", "fixed_rank_hopper.md"} <= tables  # fmt: skip
+    stems = {p.stem for p in (built / "figures").glob("*.png")}
+    assert stems == {p.stem for p in (built / "figures").glob("*.pdf")}
+    assert {
+        "training_curves", "ranks_hopper_adarl", "ranks_walker2d_adarl", "spectra_hopper_adarl",
+        "robustness_hopper_sweep-torso_length-0.2-0.6-3_hold-foot_length-0.39",
+        "bias_variance_hopper", "rank_rule_ablation_hopper", "aggregate_iqm_mean",
+        "performance_profiles", "probability_of_improvement",
+    } <= stems  # fmt: skip
+    assert not list(built.parent.glob(".report.*"))  # no temp folder left
+
+
+def test_table1_has_a_row_per_task_and_bold_best(built):
+    md = (built / "tables" / "table1.md").read_text()
+    assert md.splitlines()[0] == "| task | adarl | adarl (ratio rule) | sac |"
+    hopper = next(line for line in md.splitlines() if line.startswith("| hopper"))
+    assert hopper.split("|")[2].strip().startswith("**")  # adarl (quality 1.0) is best
+    csv = pd.read_csv(built / "tables" / "table1.csv")
+    assert set(csv["task"]) == {"hopper", "walker2d"} and set(csv["seeds"]) == {3}
+    assert "sac-fixed-rank" not in md  # the rank sweep has its own table and figure
+
+
+def test_statistics_tables(built):
+    aggregate = pd.read_csv(built / "tables" / "aggregate.csv")
+    assert set(aggregate["metric"]) == {"IQM", "Mean"}
+    assert set(aggregate["method"]) == {"adarl", "sac"}  # the ratio rule ran on hopper only
+    assert (aggregate["low"] <= aggregate["point"]).all() and (aggregate["point"] <= aggregate["high"]).all()
+    poi = pd.read_csv(built / "tables" / "probability_of_improvement.csv")
+    assert set(poi["baseline"]) == {"adarl (ratio rule)", "sac"}  # fixed ranks: bias–variance
+    sac = poi[poi["baseline"] == "sac"].iloc[0]
+    assert sac["tasks"] == "hopper walker2d" and sac["point"] > 0.5
+
+
+def test_index_links_everything_and_states_budget_seeds_and_commands(built):
+    index = (built / "index.md").read_text()
+    for text in ("## Budget and seeds", "10,000", "0 1 2", "## Table 1", "## Robustness",
+                 "## Bias–variance", "## Rank-rule ablation", "## Policy size", "## Commands",
+                 "adarl train --algo sac --task walker2d", "adarl evaluate",
+                 "--bootstrap-reps 200", "](figures/training_curves.png)",
+                 "](figures/training_curves.pdf)", "](tables/table1.tex)"):  # fmt: skip
+        assert text in index, text
+    for link in [part.split(")")[0] for part in index.split("](")[1:]]:
+        assert (built / link).is_file(), link
+
+
+def test_rerun_replaces_a_previous_report(tmp_path):
+    write_run(tmp_path / "runs", "a", algo="sac", seeds=(0,))
+    out = tmp_path / "report"
+    assert main(["report", str(tmp_path / "runs" / "a"), "--out", str(out), "--bootstrap-reps", "20"]) == 0
+    write_run(tmp_path / "runs", "b", algo="sac-parseval", seeds=(0,))
+    assert main(["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "20"]) == 0
+    assert "sac-parseval" in (out / "tables" / "table1.md").read_text()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def _fails(argv, capsys, fragment):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("adarl report: error:") and err.count("\n") == 1 and fragment in err, err
+
+
+def test_bad_input_exits_2_and_writes_nothing(tmp_path, sweep, capsys):
+    out = tmp_path / "out"
+    (tmp_path / "empty").mkdir()
+    _fails(["report", str(tmp_path / "empty"), "--out", str(out)], capsys, "holds none")
+    bare = write_run(tmp_path / "runs", "bare", checkpoint=False)
+    _fails(["report", str(bare), "--out", str(out)], capsys, f"{bare} has no complete checkpoint")
+    ompo = write_run(tmp_path / "runs2", "ompo", dynamics="ompo", algo="sac")
+    _fails(["report", str(sweep / "hopper" / "adarl"), str(ompo), "--out", str(out)], capsys,
+           "would share the table row 'hopper'")  # fmt: skip
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "notes.txt").write_text("mine")
+    _fails(["report", str(sweep), "--out", str(tmp_path / "busy")], capsys, "not an adarl report")
+    assert not out.exists() and (tmp_path / "busy" / "notes.txt").read_text() == "mine"
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_skip_incomplete(tmp_path, capsys):
+    write_run(tmp_path, "done", algo="sac")
+    write_run(tmp_path, "early", checkpoint=False)
+    out = tmp_path / "r"
+    assert main(["report", str(tmp_path), "--out", str(out), "--skip-incomplete", "--bootstrap-reps", "20"]) == 0
+    assert "Skipped" in (out / "index.md").read_text() and "early" in (out / "index.md").read_text()
+
+
+def test_a_failure_midway_leaves_the_previous_report_untouched(tmp_path, monkeypatch):
+    write_run(tmp_path / "runs", "a", algo="sac")
+    out = tmp_path / "report"
+    assert main(["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "20"]) == 0
+    before = (out / "index.md").read_text()
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(report, "policy_size_section", boom)
+    with pytest.raises(RuntimeError):
+        main(["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "20"])
+    assert (out / "index.md").read_text() == before
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []

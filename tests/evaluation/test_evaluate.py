@@ -1,0 +1,133 @@
+"""Evaluation: planning and checks, determinism (same seed, same returns; one worker or two),
+the CSV and its sidecar, and NumPy policy files (round trip, export)."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from adarl.errors import UsageError
+from adarl.evaluation import evaluate
+from adarl.evaluation.collect import final_scores
+from adarl.evaluation.export import export_policy
+from adarl.evaluation.runs import find_runs, load_run, policy_file
+from adarl.evaluation.synthetic import policy_arrays, write_run
+from adarl.policy import load, save
+
+pytest.importorskip("mujoco")
+
+SHORT = {"episodes": 2, "max_steps": 25}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    return load_run(write_run(tmp_path_factory.mktemp("ev"), "adarl", seeds=(0, 1)))
+
+
+def spec(**kwargs):
+    options = {"dynamics": "nominal", "sweeps": (), "holds": ()}
+    options.update({k: kwargs.pop(k) for k in list(kwargs) if k in options})
+    return evaluate.EvalSpec.from_options(**options, **{**SHORT, **kwargs})
+
+
+def test_plan_covers_every_seed_and_grid_point(run):
+    units = evaluate.plan([run], spec(sweeps=["torso_length=0.3:0.5:3"], holds=["foot_length=0.39"]))
+    assert len(units) == 3 * 2
+    assert {u.seed for u in units} == {0, 1} and {u.step for u in units} == {10_000}
+    assert units[0].label == "nominal:torso_length=0.3,foot_length=0.39"
+    assert dict(units[-1].point) == {"torso_length": 0.5, "foot_length": 0.39}
+
+
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"sweeps": ["gravity=5:15:3"]}, "unknown parameter 'gravity' of task hopper"),
+        ({"sweeps": ["torso_length=-0.2:0.2:3"]}, "bad value"),
+        ({"dynamics": "sideways"}, "unknown dynamics"),
+        ({"dynamics": "default", "holds": ["mass_scale=2"]}, "takes no values"),
+        ({"checkpoint": 123}, "no checkpoint at step 123"),
+    ],
+)
+def test_bad_requests_fail_before_any_episode(run, kwargs, fragment):
+    with pytest.raises(UsageError, match=fragment):
+        evaluate.plan([run], spec(**kwargs))
+
+
+def test_bad_episode_counts():
+    with pytest.raises(UsageError, match="--episodes must be ≥ 1"):
+        evaluate.EvalSpec.from_options(episodes=0)
+    with pytest.raises(UsageError, match="--workers"):
+        evaluate.execute([], workers=0)
+
+
+def test_same_seed_same_returns_with_one_or_two_workers(run):
+    s = spec(sweeps=["torso_length=0.3,0.5"], holds=["foot_length=0.39"])
+    (a,) = evaluate.evaluate_runs([run], s, workers=1)
+    (b,) = evaluate.evaluate_runs([run], s, workers=1)
+    (c,) = evaluate.evaluate_runs([run], s, workers=2)
+    pd.testing.assert_frame_equal(a, b)
+    pd.testing.assert_frame_equal(a, c)
+    assert len(a) == 2 * 2 * 2  # points × seeds × episodes
+    assert list(a.columns[:6]) == evaluate.COLUMNS
+    assert sorted(a["p_torso_length"].unique()) == [0.3, 0.5]
+    assert set(a["p_foot_length"]) == {0.39}
+    assert (a["length"] <= 25).all() and np.isfinite(a["return"]).all()
+    # another evaluation seed gives other initial states, hence (generically) other returns
+    (d,) = evaluate.evaluate_runs([run], spec(sweeps=["torso_length=0.3,0.5"], holds=["foot_length=0.39"], eval_seed=7), workers=1)
+    assert not np.allclose(a["return"], d["return"])
+
+
+def test_written_csv_and_sidecar_feed_the_final_score(tmp_path):
+    run = load_run(write_run(tmp_path, "r", seeds=(0, 1)))
+    s = spec()
+    (table,) = evaluate.evaluate_runs([run], s, workers=1)
+    path = evaluate.write_evaluation(table, evaluate.default_output(run, s), s, run, "adarl evaluate r")
+    assert path == run.path / "evaluations" / "nominal.csv"
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert meta["checkpoint_step"] == 10_000 and meta["seeds"] == [0, 1] and meta["sweep"] == {}
+    assert meta["command"] == "adarl evaluate r"
+    # truncated episodes (max_episode_steps) are not a final score: eval.csv is used instead
+    assert final_scores(run)[1].startswith("eval.csv")
+    meta["max_episode_steps"] = None  # as if the episodes had run to the end
+    path.with_suffix(".json").write_text(json.dumps(meta))
+    scores, note = final_scores(run)
+    assert note.startswith("`adarl evaluate`") and list(scores["seed"]) == [0, 1]
+    assert scores["score"].to_numpy() == pytest.approx(table.groupby("seed")["return"].mean().to_numpy())
+    summary = evaluate.summarise(table)
+    assert list(summary.columns) == ["dynamics", "mean", "std", "seeds"]
+
+
+def test_all_seeds_of_several_runs_are_evaluated_together(tmp_path):
+    write_run(tmp_path, "a", seeds=(0,))
+    write_run(tmp_path, "b", algo="sac", seeds=(4, 5))
+    tables = evaluate.evaluate_runs(find_runs([tmp_path]), spec(episodes=1), workers=1)
+    assert [sorted(t["seed"].unique()) for t in tables] == [[0], [4, 5]]
+
+
+def test_numpy_policy_round_trip_by_hand(tmp_path):
+    arrays = policy_arrays(obs_dim=4, act_dim=2, seed=3, hidden=5, rank=2)
+    save(tmp_path / "p.npz", arrays)
+    policy = load(tmp_path / "p.npz")
+    obs = np.random.default_rng(0).normal(size=(6, 4)).astype(np.float32)
+    h = np.maximum(obs @ arrays["l0_w"] + arrays["l0_b"], 0)
+    h = np.maximum(h @ arrays["l1_w1"] @ arrays["l1_w2"] + arrays["l1_b"], 0)
+    expected = np.tanh(h @ arrays["mean_w"] + arrays["mean_b"])
+    assert policy(obs) == pytest.approx(expected, abs=1e-6)
+    assert policy(obs[0]).shape == (2,)
+    # 4·5+5 (dense) + 5·2+2·5+5 (bottleneck) + 5·2+2 (head) = 62
+    assert policy.n_params() == 62
+    assert int(arrays["n_params_full"]) == 4 * 5 + 5 + 2 * 5 * 5 + 5 + 5 * 2 + 2
+
+
+def test_export_copies_the_policy_and_counts_parameters(tmp_path):
+    run = load_run(write_run(tmp_path, "r", seeds=(0, 1), algo="sac-fixed-rank", rank=4))
+    done = export_policy(run, 1, tmp_path / "out" / "policy.npz")
+    source = policy_file(run, 1)
+    assert done.out.read_bytes() == source.read_bytes()
+    obs = np.ones(11, np.float32)
+    assert np.array_equal(load(done.out)(obs), load(source)(obs))
+    assert (done.obs_dim, done.act_dim, done.step) == (11, 3, 10_000)
+    assert done.n_params < done.n_params_full and 0 < done.kept < 1
+    with pytest.raises(UsageError, match="is a folder"):
+        export_policy(run, 1, tmp_path)

@@ -1,0 +1,55 @@
+"""`adarl play`: offscreen rendering to a video. Rendering runs in a subprocess because MuJoCo
+fixes its GL backend (MUJOCO_GL) when first imported; the test is skipped, with the reason,
+where no offscreen backend works."""
+
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from adarl.errors import UsageError
+from adarl.evaluation.play import backend_available, check_video_path
+from adarl.evaluation.synthetic import write_run
+
+
+def test_video_path_checks(tmp_path):
+    with pytest.raises(UsageError, match="unsupported format; allowed: .mp4, .gif"):
+        check_video_path(tmp_path / "out.avi")
+    (tmp_path / "d.gif").mkdir()
+    with pytest.raises(UsageError, match="is a folder"):
+        check_video_path(tmp_path / "d.gif")
+    check_video_path(tmp_path / "out.gif")
+
+
+@pytest.fixture(scope="module")
+def backend():
+    for name in ("egl", "osmesa"):
+        ok, reason = backend_available(name)
+        if ok:
+            return name
+    pytest.skip(f"no offscreen OpenGL backend here: {reason}")
+
+
+@pytest.mark.parametrize("suffix", [".gif", ".mp4"])
+def test_play_renders_a_video(tmp_path, backend, suffix):
+    if suffix == ".mp4" and importlib.util.find_spec("imageio_ffmpeg") is None:
+        pytest.skip("imageio-ffmpeg is not installed (pip install 'adarl[video]')")
+    run = write_run(tmp_path, "r", seeds=(0, 1))
+    video = tmp_path / f"out{suffix}"
+    env = dict(os.environ, MUJOCO_GL=backend)
+    env.pop("PYOPENGL_PLATFORM", None)
+    cmd = [sys.executable, "-m", "adarl.cli.main", "play", str(run), "--seed", "1",
+           "--dynamics", "nominal", "--hold", "torso_length=0.5", "--video", str(video),
+           "--max-episode-steps", "12", "--width", "64", "--height", "48"]  # fmt: skip
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "episode 0: return" in done.stdout and "torso_length=0.5" in done.stdout
+    import imageio.v3 as iio
+
+    frames = iio.imread(video, index=None)
+    assert frames.shape[0] >= 2 and frames.shape[1:3] == (48, 64)
+    assert frames.std() > 0  # not a blank image
+    assert [p.name for p in Path(tmp_path).iterdir() if p.name.startswith(".")] == []

@@ -1,0 +1,86 @@
+"""Finding run folders, method labels, checkpoints and policy files."""
+
+import pytest
+import yaml
+
+from adarl.errors import UsageError
+from adarl.evaluation import runs
+from adarl.evaluation.synthetic import write_run
+
+
+def test_find_runs_in_a_run_and_in_a_folder_of_runs(tmp_path):
+    a = write_run(tmp_path / "sweep" / "hopper", "adarl", seeds=(0, 1))
+    b = write_run(tmp_path / "sweep" / "walker", "sac", algo="sac", task="walker2d", seeds=(0,))
+    found = runs.find_runs([tmp_path / "sweep"])
+    assert [r.path for r in found] == [a, b]
+    assert [r.label for r in found] == ["adarl", "sac"]
+    assert found[0].seeds == [0, 1] and found[0].total_steps == 10_000 and found[0].task == "hopper"
+    assert runs.find_runs([a])[0].path == a
+    assert len(runs.find_runs([a, tmp_path / "sweep"])) == 2  # no duplicates
+
+
+def test_not_a_run(tmp_path):
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(UsageError, match="is not a run folder and holds none"):
+        runs.find_runs([tmp_path / "empty"])
+    with pytest.raises(UsageError, match="does not exist"):
+        runs.find_runs([tmp_path / "nowhere"])
+    with pytest.raises(UsageError, match="is not a run folder"):
+        runs.load_run(tmp_path / "empty")
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "config.yaml").write_text("task: hopper\n")
+    with pytest.raises(UsageError, match="no 'algo' field"):
+        runs.load_run(bad)
+
+
+def test_nested_config_sections_and_seed_forms():
+    config = {"algo": "adarl", "env": {"task": "hopper", "seeds": "0-2,5"}}
+    assert runs.config_value(config, "task") == "hopper"
+    assert runs.parse_seeds(runs.config_value(config, "seeds")) == [0, 1, 2, 5]
+    assert runs.parse_seeds(3) == [3] and runs.parse_seeds([1, 2]) == [1, 2]
+    with pytest.raises(UsageError):
+        runs.parse_seeds("a-b")
+
+
+def test_method_labels_tell_variants_apart():
+    assert runs.method_label({"algo": "sac-fixed-rank", "rank": 7}) == "sac-fixed-rank r=7"
+    assert runs.method_label({"algo": "adarl", "rank_rule": "ratio"}) == "adarl (ratio rule)"
+    assert runs.method_label({"algo": "adarl", "rank_rule": "cumulative"}) == "adarl"
+    assert runs.sort_methods(["sac", "sac-fixed-rank r=16", "adarl (ratio rule)", "sac-fixed-rank r=2", "adarl"]) == [
+        "adarl", "adarl (ratio rule)", "sac", "sac-fixed-rank r=2", "sac-fixed-rank r=16",
+    ]  # fmt: skip
+    assert runs.sort_tasks(["ant", "zoo", "hopper"]) == ["hopper", "ant", "zoo"]
+
+
+def test_overlapping_seeds_get_labels_from_differing_config_fields(tmp_path):
+    write_run(tmp_path, "c3", algo="sac-parseval", seeds=(0, 1), extra_config={"coef": 1e-3})
+    write_run(tmp_path, "c4", algo="sac-parseval", seeds=(0, 1), extra_config={"coef": 1e-4})
+    write_run(tmp_path, "more", algo="sac", seeds=(0,))
+    write_run(tmp_path, "more2", algo="sac", seeds=(1,))  # disjoint seeds: pooled as one method
+    labels = sorted(r.label for r in runs.find_runs([tmp_path]))
+    assert labels == ["sac", "sac", "sac-parseval (coef=0.0001)", "sac-parseval (coef=0.001)"]
+
+
+def test_the_same_run_twice_is_refused(tmp_path):
+    write_run(tmp_path / "x", "a", seeds=(0, 1))
+    write_run(tmp_path / "y", "a", seeds=(1, 2))
+    with pytest.raises(UsageError, match=r"both 'adarl' on hopper with seed\(s\) \[1\]"):
+        runs.find_runs([tmp_path])
+
+
+def test_checkpoints_and_policy_files(tmp_path):
+    run = runs.load_run(write_run(tmp_path, "a", seeds=(3, 5), total_steps=400))
+    ckpt = runs.select_checkpoint(run)
+    assert runs.checkpoint_step(ckpt) == 400
+    assert list(runs.policy_files(ckpt)) == [3, 5]
+    assert runs.policy_file(run, 5).name == "policy_seed_5.npz"
+    with pytest.raises(UsageError, match="has no seed 4; it has seeds: 3, 5"):
+        runs.policy_file(run, 4)
+    with pytest.raises(UsageError, match="no checkpoint at step 7; it has: 400"):
+        runs.select_checkpoint(run, 7)
+    bare = runs.load_run(write_run(tmp_path, "b", checkpoint=False))
+    with pytest.raises(UsageError, match="has no complete checkpoint"):
+        runs.select_checkpoint(bare)
+    config = yaml.safe_load((run.path / "config.yaml").read_text())
+    assert config["command"].startswith("adarl train")
