@@ -27,7 +27,6 @@ from gymnasium.envs.registration import load_env_creator
 
 from adarl.envs import DynamicsEnv, get_task, list_tasks, make, parse_dynamics
 
-
 #: plain: gymnasium.make(id); default: our wrapper on Gymnasium's model (its cost alone);
 #: nominal: the paper's centroid compiled once (the physics of the paper's dynamics);
 #: paper: a new model every episode.

@@ -37,8 +37,17 @@ import optax
 from adarl.errors import UsageError, check_choice
 
 UNCERTAINTY_SETS = ("ds", "ipm")
-TRAIN_COLUMNS = ["step", "seed", "steps_per_s", "loss_pi", "loss_v", "entropy", "lr", "approx_kl",
-                 "clip_frac"]
+TRAIN_COLUMNS = [
+    "step",
+    "seed",
+    "steps_per_s",
+    "loss_pi",
+    "loss_v",
+    "entropy",
+    "lr",
+    "approx_kl",
+    "clip_frac",
+]
 METRICS = TRAIN_COLUMNS[3:]  # what an update reports, in this order
 
 
@@ -59,7 +68,7 @@ class RNACConfig:
     delta: float = 1.0 / 3.0
     n_candidates: int = 2
     action_noise: float = 5e-3  # uniform ±noise on every executed action (both sets)
-    weight_reg: float = 1e-5  # ipm: TD residual −= weight_reg·‖θ_V‖₂ (unused by ds, as in the original)
+    weight_reg: float = 1e-5  # ipm: TD residual −= weight_reg·‖θ_V‖₂ (ds: 0, as the original)
     # --- PPO (the original's tricks 1-10)
     hidden: tuple[int, ...] = (64, 64)
     rollout_steps: int = 2048  # "batch_size" of the original: env steps per seed per update
@@ -93,9 +102,21 @@ class RNACConfig:
             raise UsageError(f"delta must be in [0, 1], got {self.delta}")
         if self.n_candidates < 1:
             raise UsageError(f"n-candidates must be ≥ 1, got {self.n_candidates}")
-        positive = ["total_steps", "rollout_steps", "minibatch_size", "epochs", "eval_every",
-                    "log_every", "checkpoint_every", "keep_checkpoints", "lr", "clip_eps",
-                    "adam_eps", "max_grad_norm", "obs_clip"]
+        positive = [
+            "total_steps",
+            "rollout_steps",
+            "minibatch_size",
+            "epochs",
+            "eval_every",
+            "log_every",
+            "checkpoint_every",
+            "keep_checkpoints",
+            "lr",
+            "clip_eps",
+            "adam_eps",
+            "max_grad_norm",
+            "obs_clip",
+        ]
         for name in positive:
             if not getattr(self, name) > 0:
                 raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
@@ -131,38 +152,51 @@ PRESETS: dict[str, dict] = {
     "ipm": {"uncertainty_set": "ipm"},
     # tiny budgets for tests and smoke runs
     "smoke": {
-        "total_steps": 2048, "rollout_steps": 256, "minibatch_size": 64, "epochs": 2,
-        "eval_every": 1024, "eval_episodes": 1, "log_every": 256, "checkpoint_every": 1024,
+        "total_steps": 2048,
+        "rollout_steps": 256,
+        "minibatch_size": 64,
+        "epochs": 2,
+        "eval_every": 1024,
+        "eval_episodes": 1,
+        "log_every": 256,
+        "checkpoint_every": 1024,
     },
 }
 
 
 # ============================================================================ networks
 # Parameters are plain pytrees; weights are stored (in, out) so a layer is x @ w + b.
-def init_dense(key, n_in: int, n_out: int, gain: float) -> dict:
+# Initialisation runs in NumPy: XLA's QR takes tens of seconds to compile on our CPUs.
+def orthogonal(rng: np.random.Generator, n_in: int, n_out: int, gain: float) -> np.ndarray:
+    """Orthogonal matrix (Saxe et al. 2014) as torch.nn.init.orthogonal_: Q of the QR of a
+    Gaussian matrix with signs fixed by diag(R), times `gain`; shape (n_in, n_out)."""
+    a = rng.standard_normal((max(n_in, n_out), min(n_in, n_out)))
+    q, r = np.linalg.qr(a)
+    q = q * np.sign(np.diag(r))
+    return (gain * (q if n_in >= n_out else q.T)).astype(np.float32)
+
+
+def init_dense(rng: np.random.Generator, n_in: int, n_out: int, gain: float) -> dict:
     """Orthogonal weights with `gain`, zero bias (the original's trick 8)."""
-    w = jax.nn.initializers.orthogonal(gain)(key, (n_in, n_out), jnp.float32)
-    return {"w": w, "b": jnp.zeros((n_out,), jnp.float32)}
+    return {"w": orthogonal(rng, n_in, n_out, gain), "b": np.zeros(n_out, np.float32)}
 
 
-def init_actor(key, obs_dim: int, act_dim: int, hidden: tuple[int, ...], log_std: float) -> dict:
+def init_actor(rng, obs_dim: int, act_dim: int, hidden: tuple[int, ...], log_std: float) -> dict:
     """Gaussian actor: tanh trunk (gain 1), mean head (gain 0.01), state-independent log-std."""
     sizes = [obs_dim, *hidden]
-    keys = jax.random.split(key, len(hidden) + 1)
     return {
-        "trunk": [init_dense(keys[i], sizes[i], sizes[i + 1], 1.0) for i in range(len(hidden))],
-        "mean": init_dense(keys[-1], sizes[-1], act_dim, 0.01),
-        "log_std": jnp.full((act_dim,), log_std, jnp.float32),
+        "trunk": [init_dense(rng, sizes[i], sizes[i + 1], 1.0) for i in range(len(hidden))],
+        "mean": init_dense(rng, sizes[-1], act_dim, 0.01),
+        "log_std": np.full(act_dim, log_std, np.float32),
     }
 
 
-def init_critic(key, obs_dim: int, hidden: tuple[int, ...]) -> dict:
+def init_critic(rng, obs_dim: int, hidden: tuple[int, ...]) -> dict:
     """State-value critic: tanh trunk and a linear output, all orthogonal with gain 1."""
     sizes = [obs_dim, *hidden]
-    keys = jax.random.split(key, len(hidden) + 1)
     return {
-        "trunk": [init_dense(keys[i], sizes[i], sizes[i + 1], 1.0) for i in range(len(hidden))],
-        "out": init_dense(keys[-1], sizes[-1], 1, 1.0),
+        "trunk": [init_dense(rng, sizes[i], sizes[i + 1], 1.0) for i in range(len(hidden))],
+        "out": init_dense(rng, sizes[-1], 1, 1.0),
     }
 
 
@@ -202,7 +236,7 @@ def sample_action(actor: dict, obs: np.ndarray, rng: np.random.Generator, low, h
     of the clipped action, as the original (float32 throughout, like the networks)."""
     mean = actor_mean(actor, obs, low, high, np)
     eps = rng.standard_normal(mean.shape).astype(np.float32)
-    a = np.clip(mean + np.exp(actor["log_std"]) * eps, low, high).astype(np.float32)
+    a = clip(mean + np.exp(actor["log_std"]) * eps, low, high).astype(np.float32)
     return a, float(gaussian_log_prob(a, mean, actor["log_std"], np))
 
 
@@ -235,20 +269,21 @@ def ppo_clip_objective(logp_new, logp_old, adv, clip_eps: float):
 
 
 def ipm_norm(critic: dict):
-    """‖θ_V‖₂ of the IPM uncertainty set (RNAC, sec. 4.2; `reg_norm` in the original): the
+    """‖θ_V‖₂ of RNAC's IPM uncertainty set (`reg_norm` in the original's update): the
     Euclidean norm of all critic weights and of all biases except the output layer's."""
     squares = [jnp.sum(layer["w"] ** 2) + jnp.sum(layer["b"] ** 2) for layer in critic["trunk"]]
     return jnp.sqrt(sum(squares) + jnp.sum(critic["out"]["w"] ** 2))
 
 
 def select_candidate(values: np.ndarray, worst: bool, random_index: int) -> int:
-    """Double sampling (RNAC, sec. 4.1): the lowest-valued candidate argmin_k V(s'_k) when `worst`
-    (drawn with probability δ), else the uniformly drawn `random_index`."""
+    """RNAC's double-sampling uncertainty set: the lowest-valued candidate argmin_k V(s'_k) when
+    `worst` (drawn with probability δ), else the uniformly drawn `random_index`."""
     return int(np.argmin(values)) if worst else int(random_index)
 
 
-def draw_double_sampling(rng: np.random.Generator, n: int, act_dim: int, noise: float,
-                         delta: float) -> tuple[np.ndarray, bool, int]:
+def draw_double_sampling(
+    rng: np.random.Generator, n: int, act_dim: int, noise: float, delta: float
+) -> tuple[np.ndarray, bool, int]:
     """The random draws of one double-sampling step, always in this order (so a resumed run
     consumes the generator identically): the candidates' action noises U(−noise, noise), whether
     this step takes the worst candidate (probability δ), and the random candidate otherwise."""
@@ -267,28 +302,55 @@ class TrainState(NamedTuple):
 
 def make_optimizer(config: RNACConfig) -> optax.GradientTransformation:
     """Gradient-norm clip then Adam(ε); the (decaying) learning rate is applied by the update."""
-    return optax.chain(optax.clip_by_global_norm(config.max_grad_norm),
-                       optax.scale_by_adam(eps=config.adam_eps))
+    return optax.chain(
+        optax.clip_by_global_norm(config.max_grad_norm), optax.scale_by_adam(eps=config.adam_eps)
+    )
 
 
-def init_state(key, config: RNACConfig, obs_dim: int, act_dim: int) -> TrainState:
-    ka, kc = jax.random.split(key)
-    actor = init_actor(ka, obs_dim, act_dim, tuple(config.hidden), config.init_log_std)
-    critic = init_critic(kc, obs_dim, tuple(config.hidden))
-    opt = make_optimizer(config)
-    return TrainState(actor, critic, opt.init(actor), opt.init(critic))
+def init_states(seeds: list[int], config: RNACConfig, obs_dim: int, act_dim: int):
+    """Every seed's networks and optimiser states, stacked over seeds, and the raw (uint32)
+    threefry keys of their updates; all drawn from NumPy generators seeded by the seed."""
+    params, keys = [], []
+    for seed in seeds:
+        rng = np.random.default_rng([seed, 0x1717])
+        actor = init_actor(rng, obs_dim, act_dim, tuple(config.hidden), config.init_log_std)
+        params.append((actor, init_critic(rng, obs_dim, tuple(config.hidden))))
+        keys.append(rng.integers(0, 2**32, size=2, dtype=np.uint32))
+    actor, critic = jax.tree.map(lambda *x: np.stack(x), *params)
+    key = (tuple(config.hidden), obs_dim, act_dim, len(seeds))
+    if key not in _OPT_INITS:
+        _OPT_INITS[key] = jax.jit(jax.vmap(make_optimizer(config).init))
+    opt_init = _OPT_INITS[key]
+    return TrainState(actor, critic, opt_init(actor), opt_init(critic)), np.stack(keys)
+
+
+_OPT_INITS: dict = {}
 
 
 # config fields the update depends on: equal values reuse the compiled update (tests, resumes)
-UPDATE_FIELDS = ("hidden", "rollout_steps", "minibatch_size",
-                 "epochs", "clip_eps", "gamma", "gae_lambda", "adam_eps", "max_grad_norm",
-                 "ent_coef", "norm_adv")
+UPDATE_FIELDS = (
+    "hidden",
+    "rollout_steps",
+    "minibatch_size",
+    "epochs",
+    "clip_eps",
+    "gamma",
+    "gae_lambda",
+    "adam_eps",
+    "max_grad_norm",
+    "ent_coef",
+    "norm_adv",
+)
 _UPDATES: dict = {}
 
 
 def make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
     """Cached `_make_update`: one compiled update per distinct setting."""
-    key = (*(getattr(config, f) for f in UPDATE_FIELDS), tuple(np.ravel(low)), tuple(np.ravel(high)))
+    key = (
+        *(getattr(config, f) for f in UPDATE_FIELDS),
+        tuple(np.ravel(low)),
+        tuple(np.ravel(high)),
+    )
     if key not in _UPDATES:
         _UPDATES[key] = _make_update(config, low, high)
     return _UPDATES[key]
@@ -296,8 +358,8 @@ def make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
 
 def _make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
     """The PPO/RNAC update of one seed on one rollout, jitted and vmapped over seeds:
-    `update(states, batches, keys, lr, weight_reg) -> (states, metrics)`; `weight_reg` is the
-    IPM coefficient (0 for ds).
+    `update(states, batches, keys, lr, weight_reg) -> (states, metrics, keys)`; `weight_reg` is
+    the IPM coefficient (0 for ds).
 
     A batch holds `obs, actions, logp, rewards, next_obs, terminated, done`, time-major. GAE runs
     once with the pre-update critic (IPM penalty included), advantages are normalised over the
@@ -313,13 +375,16 @@ def _make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
         mean = actor_mean(actor, obs, low, high)
         logp = gaussian_log_prob(actions, mean, actor["log_std"])
         entropy = jnp.broadcast_to(gaussian_entropy(actor["log_std"]), logp.shape)
-        loss = jnp.mean(-ppo_clip_objective(logp, logp_old, adv, config.clip_eps)
-                        - config.ent_coef * entropy)
+        loss = jnp.mean(
+            -ppo_clip_objective(logp, logp_old, adv, config.clip_eps) - config.ent_coef * entropy
+        )
         log_ratio = logp - logp_old
         ratio = jnp.exp(log_ratio)
-        aux = {"entropy": jnp.mean(entropy),
-               "approx_kl": jnp.mean((ratio - 1.0) - log_ratio),
-               "clip_frac": jnp.mean((jnp.abs(ratio - 1.0) > config.clip_eps).astype(jnp.float32))}
+        aux = {
+            "entropy": jnp.mean(entropy),
+            "approx_kl": jnp.mean((ratio - 1.0) - log_ratio),
+            "clip_frac": jnp.mean((jnp.abs(ratio - 1.0) > config.clip_eps).astype(jnp.float32)),
+        }
         return loss, aux
 
     def critic_loss(critic, obs, targets):
@@ -330,11 +395,20 @@ def _make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
         return jax.tree.map(lambda p, u: p - lr * u, params, updates), opt_state
 
     def update(state: TrainState, batch: dict, key, lr, weight_reg):
+        key, key_epochs = jax.random.split(key)
         values = critic_value(state.critic, batch["obs"])
         next_values = critic_value(state.critic, batch["next_obs"])
         penalty = weight_reg * ipm_norm(state.critic)
-        adv, targets = gae(batch["rewards"], values, next_values, batch["terminated"],
-                           batch["done"], config.gamma, config.gae_lambda, penalty)
+        adv, targets = gae(
+            batch["rewards"],
+            values,
+            next_values,
+            batch["terminated"],
+            batch["done"],
+            config.gamma,
+            config.gae_lambda,
+            penalty,
+        )
         if config.norm_adv:
             adv = (adv - adv.mean()) / (adv.std(ddof=1) + 1e-5)
         data = (batch["obs"], batch["actions"], batch["logp"], adv, targets)
@@ -342,25 +416,24 @@ def _make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
         def minibatch(state: TrainState, idx):
             obs, actions, logp_old, a, t = (x[idx] for x in data)
             (loss_pi, aux), g_actor = jax.value_and_grad(actor_loss, has_aux=True)(
-                state.actor, obs, actions, logp_old, a)
+                state.actor, obs, actions, logp_old, a
+            )
             loss_v, g_critic = jax.value_and_grad(critic_loss)(state.critic, obs, t)
             actor, actor_opt = apply(state.actor, g_actor, state.actor_opt, lr)
             critic, critic_opt = apply(state.critic, g_critic, state.critic_opt, lr)
             return TrainState(actor, critic, actor_opt, critic_opt), dict(
-                aux, loss_pi=loss_pi, loss_v=loss_v)
+                aux, loss_pi=loss_pi, loss_v=loss_v
+            )
 
         def epoch(state: TrainState, key):
             return jax.lax.scan(minibatch, state, jax.random.permutation(key, n).reshape(n_mb, mb))
 
-        state, metrics = jax.lax.scan(epoch, state, jax.random.split(key, config.epochs))
+        state, metrics = jax.lax.scan(epoch, state, jax.random.split(key_epochs, config.epochs))
         metrics = {k: jnp.mean(v) for k, v in metrics.items()}
         metrics["lr"] = jnp.asarray(lr, jnp.float32)
-        return state, jnp.stack([metrics[k] for k in METRICS])
+        return state, jnp.stack([metrics[k] for k in METRICS]), key
 
     return jax.jit(jax.vmap(update, in_axes=(0, 0, 0, None, None)))
-
-
-split_keys = jax.jit(jax.vmap(jax.random.split))  # (S, 2) keys -> (S, 2, 2)
 
 
 def host_params(state: TrainState) -> list[tuple[dict, dict]]:
@@ -380,9 +453,14 @@ def welford(count, mean, m2, x):
     return count, mean, m2 + delta * (x - mean)
 
 
-def normalise_obs(obs, mean, var, clip: float) -> np.ndarray:
+def normalise_obs(obs, mean, var, obs_clip: float) -> np.ndarray:
     """clip((o − m)/√(v + 1e-8), ±clip): the adarl policy-file formula, used in training too."""
-    return np.clip((obs - mean) / np.sqrt(var + 1e-8), -clip, clip).astype(np.float32)
+    return clip((obs - mean) / np.sqrt(var + 1e-8), -obs_clip, obs_clip).astype(np.float32)
+
+
+def clip(x, low, high):
+    """np.clip without its dispatch overhead (a few µs per call, several calls per step)."""
+    return np.minimum(np.maximum(x, low), high)
 
 
 # ============================================================================ double sampling
@@ -390,11 +468,12 @@ class ShadowSimulator:
     """The second simulator of double sampling.
 
     It is a second `MjData` on the real environment's current `MjModel`, so it always has the
-    current episode's dynamics (adarl.envs recompiles the model at reset; a new model is noticed
-    and a new MjData made). Each candidate starts from the real simulator's full integration state
-    (`mj_getState(mjSTATE_INTEGRATION)`: time, qpos, qvel, act, warm start, controls, applied
-    forces), is stepped by the task's own `do_simulation`, and observed by its own `_get_obs`
-    (the env's `data` is swapped for the duration). The real environment is left untouched.
+    current episode's dynamics: adarl.envs compiles a new model at each reset whose parameters
+    change; a new model is noticed here, and the MjData is remade only if the model's sizes
+    changed (as adarl.envs does itself). Each candidate starts from the real simulator's full
+    integration state (`mj_getState(mjSTATE_INTEGRATION)`: time, qpos, qvel, act, warm start,
+    controls, applied forces), is stepped by the task's own `do_simulation` and observed by its
+    own `_get_obs` (the env's `data` is swapped for the duration). The real env is untouched.
     """
 
     def __init__(self, env):
@@ -408,9 +487,10 @@ class ShadowSimulator:
     def _sync(self):
         u = self.env.unwrapped
         if u.model is not self._model:
-            self._model = u.model
-            self._data = self._mj.MjData(u.model)
-            self._state = np.empty(self._mj.mj_stateSize(u.model, self.SPEC))
+            old, self._model = self._model, u.model
+            if old is None or _sizes(old) != _sizes(u.model):
+                self._data = self._mj.MjData(u.model)
+                self._state = np.empty(self._mj.mj_stateSize(u.model, self.SPEC))
         return u
 
     def candidates(self, actions: np.ndarray) -> np.ndarray:
@@ -429,21 +509,51 @@ class ShadowSimulator:
         return np.stack(out)
 
 
+def _sizes(m) -> tuple:
+    return (
+        m.nq,
+        m.nv,
+        m.nu,
+        m.na,
+        m.nbody,
+        m.ngeom,
+        m.njnt,
+        m.nmocap,
+        m.nuserdata,
+        m.narena,
+        m.nbuffer,
+    )
+
+
 # ============================================================================ policy export
 def policy_arrays(actor: dict, obs_mean, obs_var, obs_clip: float, low, high) -> dict:
     """One seed's deterministic policy in the adarl.policy format (tanh trunk, c + h·tanh mean)."""
     arrays = {
-        "format": np.asarray("adarl-policy-1"), "activation": np.asarray("tanh"),
-        "n_layers": np.asarray(len(actor["trunk"])), "squash": np.asarray("tanh"),
-        "mean_w": np.asarray(actor["mean"]["w"]), "mean_b": np.asarray(actor["mean"]["b"]),
-        "action_low": np.asarray(low, np.float32), "action_high": np.asarray(high, np.float32),
+        "format": np.asarray("adarl-policy-1"),
+        "activation": np.asarray("tanh"),
+        "n_layers": np.asarray(len(actor["trunk"])),
+        "squash": np.asarray("tanh"),
+        "mean_w": np.asarray(actor["mean"]["w"]),
+        "mean_b": np.asarray(actor["mean"]["b"]),
+        "action_low": np.asarray(low, np.float32),
+        "action_high": np.asarray(high, np.float32),
     }
     for i, layer in enumerate(actor["trunk"]):
-        arrays.update({f"l{i}_kind": np.asarray("dense"), f"l{i}_w": np.asarray(layer["w"]),
-                       f"l{i}_b": np.asarray(layer["b"])})
+        arrays.update(
+            {
+                f"l{i}_kind": np.asarray("dense"),
+                f"l{i}_w": np.asarray(layer["w"]),
+                f"l{i}_b": np.asarray(layer["b"]),
+            }
+        )
     if obs_mean is not None:
-        arrays.update({"obs_mean": np.asarray(obs_mean), "obs_var": np.asarray(obs_var),
-                       "obs_clip": np.asarray(obs_clip)})
+        arrays.update(
+            {
+                "obs_mean": np.asarray(obs_mean),
+                "obs_var": np.asarray(obs_var),
+                "obs_clip": np.asarray(obs_clip),
+            }
+        )
     return arrays
 
 
@@ -475,17 +585,24 @@ class Host:
     def zeros(cls, n_seeds: int, obs_dim: int, act_dim: int, t: int) -> Host:
         f32 = np.float32
         return cls(
-            obs_norm=np.zeros((n_seeds, obs_dim), f32), obs_count=np.zeros(n_seeds),
-            obs_mean=np.zeros((n_seeds, obs_dim)), obs_m2=np.zeros((n_seeds, obs_dim)),
-            ret_count=np.zeros(n_seeds), ret_mean=np.zeros(n_seeds), ret_m2=np.zeros(n_seeds),
-            ret_acc=np.zeros(n_seeds), ep_return=np.zeros(n_seeds),
+            obs_norm=np.zeros((n_seeds, obs_dim), f32),
+            obs_count=np.zeros(n_seeds),
+            obs_mean=np.zeros((n_seeds, obs_dim)),
+            obs_m2=np.zeros((n_seeds, obs_dim)),
+            ret_count=np.zeros(n_seeds),
+            ret_mean=np.zeros(n_seeds),
+            ret_m2=np.zeros(n_seeds),
+            ret_acc=np.zeros(n_seeds),
+            ep_return=np.zeros(n_seeds),
             ep_length=np.zeros(n_seeds, np.int64),
             metrics=np.full((n_seeds, len(METRICS)), np.nan, f32),
             buf_obs=np.zeros((n_seeds, t, obs_dim), f32),
-            buf_actions=np.zeros((n_seeds, t, act_dim), f32), buf_logp=np.zeros((n_seeds, t), f32),
+            buf_actions=np.zeros((n_seeds, t, act_dim), f32),
+            buf_logp=np.zeros((n_seeds, t), f32),
             buf_rewards=np.zeros((n_seeds, t), f32),
             buf_next_obs=np.zeros((n_seeds, t, obs_dim), f32),
-            buf_terminated=np.zeros((n_seeds, t), f32), buf_done=np.zeros((n_seeds, t), f32),
+            buf_terminated=np.zeros((n_seeds, t), f32),
+            buf_done=np.zeros((n_seeds, t), f32),
         )
 
     def obs_var(self, i: int) -> np.ndarray:
@@ -497,7 +614,8 @@ def _observe(host: Host, i: int, obs: np.ndarray, config: RNACConfig) -> np.ndar
     if not config.obs_norm:
         return np.asarray(obs, np.float32)
     host.obs_count[i], host.obs_mean[i], host.obs_m2[i] = welford(
-        host.obs_count[i], host.obs_mean[i], host.obs_m2[i], np.asarray(obs, np.float64))
+        host.obs_count[i], host.obs_mean[i], host.obs_m2[i], np.asarray(obs, np.float64)
+    )
     return normalise_obs(obs, host.obs_mean[i], host.obs_var(i), config.obs_clip)
 
 
@@ -515,7 +633,8 @@ def _scale_reward(host: Host, i: int, r: float, config: RNACConfig) -> float:
         return r
     host.ret_acc[i] = config.gamma * host.ret_acc[i] + r
     host.ret_count[i], host.ret_mean[i], host.ret_m2[i] = welford(
-        host.ret_count[i], host.ret_mean[i], host.ret_m2[i], host.ret_acc[i])
+        host.ret_count[i], host.ret_mean[i], host.ret_m2[i], host.ret_acc[i]
+    )
     if host.ret_count[i] < 2:
         return r
     return r / (math.sqrt(host.ret_m2[i] / host.ret_count[i]) + 1e-8)
@@ -550,7 +669,7 @@ def _decode(obj, arrays: dict):
     return obj
 
 
-def _write_config(run_dir: Path, config: RNACConfig) -> None:
+def _write_config(run_dir: Path, config: RNACConfig, command: str) -> None:
     import yaml
 
     from adarl import __version__
@@ -559,15 +678,26 @@ def _write_config(run_dir: Path, config: RNACConfig) -> None:
     def plain(v):
         return [plain(x) for x in v] if isinstance(v, list | tuple) else v
 
-    doc = {"algo": "rnac", **{k: plain(v) for k, v in dataclasses.asdict(config).items()},
-           "format_version": RUN_FORMAT_VERSION, "adarl_version": __version__,
-           "command": " ".join(sys.argv)}
+    doc = {
+        "algo": "rnac",
+        **{k: plain(v) for k, v in dataclasses.asdict(config).items()},
+        "format_version": RUN_FORMAT_VERSION,
+        "adarl_version": __version__,
+        "command": command or " ".join(sys.argv),
+    }
     atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(doc, sort_keys=False))
 
 
-def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
+def train(
+    config: RNACConfig,
+    run_dir: Path,
+    resume: bool = False,
+    progress: bool = True,
+    command: str = "",
+) -> None:
     """Train RNAC for every seed of `config` together, writing the run folder `run_dir`
-    (docs/run-format.md). With `resume`, continue from its newest complete checkpoint."""
+    (docs/run-format.md). With `resume`, continue from its newest complete checkpoint (or start
+    again if it was killed before the first one). `command` is recorded in config.yaml."""
     from tqdm import tqdm
 
     from adarl import envs
@@ -583,10 +713,25 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
     for spec in config.eval_dynamics:
         envs.parse_dynamics(spec, config.task)
     if resume:
-        ckpt_arrays, meta = io.load_checkpoint(io.latest_checkpoint(run_dir))
-    elif (run_dir / "config.yaml").exists() or io.checkpoint_dirs(run_dir):
-        raise UsageError(f"run folder {run_dir} already holds a run; resume it or choose another")
-    run_dir.mkdir(parents=True, exist_ok=True)
+        if not (run_dir / "config.yaml").exists():
+            raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
+        if (run_dir / "DONE").exists():
+            print(f"run {run_dir} is already complete", file=sys.stderr)
+            return
+        found = io.checkpoint_dirs(run_dir)
+        resume = bool(found)  # killed before its first checkpoint: start again
+        if found:
+            ckpt_arrays, meta = io.load_checkpoint(found[-1])
+        else:
+            for name in ("episodes", "train", "eval"):
+                io.CsvLog.truncate(run_dir / f"{name}.csv", 0)
+    elif run_dir.exists() and any(run_dir.iterdir()):
+        raise UsageError(
+            f"run folder {run_dir} already exists and is not empty; resume it or choose another"
+        )
+    else:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        _write_config(run_dir, config, command)
 
     # --- environments, one per seed, and the double-sampling simulators
     seeds = [int(s) for s in config.seeds]
@@ -600,16 +745,14 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
     rngs = [np.random.default_rng([s, 0x52AC]) for s in seeds]  # action noise and ds draws
 
     # --- JAX state: parameters and optimisers, and a key stream for the updates, per seed
-    keys = split_keys(jnp.stack([jax.random.PRNGKey(s) for s in seeds]))
-    state = jax.jit(jax.vmap(lambda k: init_state(k, config, obs_dim, act_dim)))(keys[:, 0])
-    update_keys = keys[:, 1]
+    state, update_keys = init_states(seeds, config, obs_dim, act_dim)
     update = make_update(config, low, high)
     host = Host.zeros(n_seeds, obs_dim, act_dim, t_roll)
 
     csv_names = ("episodes", "train", "eval")
     if resume:
         state = io.unflatten_tree(state, ckpt_arrays, "state")
-        update_keys = jnp.asarray(ckpt_arrays["update_keys"])
+        update_keys = ckpt_arrays["update_keys"]
         for f in dataclasses.fields(Host):
             if ckpt_arrays[f"host/{f.name}"].shape != getattr(host, f.name).shape:
                 raise UsageError(f"checkpoint array host/{f.name} does not match this config")
@@ -624,7 +767,6 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
             io.CsvLog.truncate(run_dir / f"{name}.csv", meta["csv_offsets"][name])
         param_names = list(env_list[0].dynamics_params)
     else:
-        _write_config(run_dir, config)
         step = 0
         for i, (env, s) in enumerate(zip(env_list, seeds)):
             obs, info = env.reset(seed=s)
@@ -636,15 +778,24 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
     params = host_params(state)  # NumPy (actor, critic) per seed for the rollout
 
     logs = {
-        "episodes": io.CsvLog(run_dir / "episodes.csv", ["step", "seed", "episode", "return",
-                                                         "length", *(f"p_{p}" for p in param_names)]),
+        "episodes": io.CsvLog(
+            run_dir / "episodes.csv",
+            ["step", "seed", "episode", "return", "length", *(f"p_{p}" for p in param_names)],
+        ),
         "train": io.CsvLog(run_dir / "train.csv", TRAIN_COLUMNS),
-        "eval": io.CsvLog(run_dir / "eval.csv", ["step", "seed", "dynamics", "episode", "return",
-                                                 "length"]),
+        "eval": io.CsvLog(
+            run_dir / "eval.csv", ["step", "seed", "dynamics", "episode", "return", "length"]
+        ),
     }
-    tb = io.Scalars(run_dir / "tb", purge_step=step if resume else None)
-    bar = tqdm(total=config.total_steps, initial=step, unit="step", dynamic_ncols=True,
-               disable=None, desc=f"rnac-{config.uncertainty_set} {config.task}")
+    tb = io.Scalars(run_dir / "tb", purge_step=step if (run_dir / "tb").exists() else None)
+    bar = tqdm(
+        total=config.total_steps,
+        initial=step,
+        unit="step",
+        dynamic_ncols=True,
+        disable=None if progress else True,
+        desc=f"rnac-{config.uncertainty_set} {config.task}",
+    )
     recent_return = np.full(n_seeds, np.nan)
     last_log = (step, time.perf_counter())
     ds = config.uncertainty_set == "ds"
@@ -654,27 +805,48 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
     def seed_policy(i: int) -> dict:
         actor = params[i][0]
         if config.obs_norm:
-            return policy_arrays(actor, host.obs_mean[i], host.obs_var(i), config.obs_clip, low, high)
+            return policy_arrays(
+                actor, host.obs_mean[i], host.obs_var(i), config.obs_clip, low, high
+            )
         return policy_arrays(actor, None, None, config.obs_clip, low, high)
 
     def evaluate():
         for i, s in enumerate(seeds):
             policy = NumpyPolicy(seed_policy(i))
             for spec in config.eval_dynamics:
-                rows = run_episodes(policy, config.task, spec, config.eval_episodes,
-                                    seed=1_000_000 + s)
-                logs["eval"].write([{"step": step, "seed": s, "dynamics": spec, "episode": r["episode"],
-                                     "return": r["return"], "length": r["length"]} for r in rows])
-                tb.write(step, {f"seed_{s}/eval_return/{spec}": np.mean([r["return"] for r in rows])})
+                rows = run_episodes(
+                    policy, config.task, spec, config.eval_episodes, seed=1_000_000 + s
+                )
+                logs["eval"].write(
+                    [
+                        {
+                            "step": step,
+                            "seed": s,
+                            "dynamics": spec,
+                            "episode": r["episode"],
+                            "return": r["return"],
+                            "length": r["length"],
+                        }
+                        for r in rows
+                    ]
+                )
+                tb.write(
+                    step, {f"seed_{s}/eval_return/{spec}": np.mean([r["return"] for r in rows])}
+                )
 
     def checkpoint():
         arrays = io.flatten_tree(state, "state")
         arrays["update_keys"] = np.asarray(update_keys)
         arrays.update({f"host/{f.name}": getattr(host, f.name) for f in dataclasses.fields(Host)})
-        env_states = [_encode(env.get_state(), arrays, f"env/{i}") for i, env in enumerate(env_list)]
-        meta = {"algo": "rnac", "rng_states": [rng.bit_generator.state for rng in rngs],
-                "env_states": env_states,
-                "csv_offsets": {name: logs[name].offset() for name in csv_names}}
+        env_states = [
+            _encode(env.get_state(), arrays, f"env/{i}") for i, env in enumerate(env_list)
+        ]
+        meta = {
+            "algo": "rnac",
+            "rng_states": [rng.bit_generator.state for rng in rngs],
+            "env_states": env_states,
+            "csv_offsets": {name: logs[name].offset() for name in csv_names},
+        }
         folder = io.save_checkpoint(run_dir, step, arrays, meta, keep=config.keep_checkpoints)
         for i, s in enumerate(seeds):  # written after meta.json: see docs/rnac.md
             save_policy(folder / f"policy_seed_{s}.npz", seed_policy(i))
@@ -690,17 +862,18 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
                 # --- the noise of the transition that happens: a random or (ds) the worst candidate
                 if ds:
                     noises, worst, ridx = draw_double_sampling(
-                        rng, config.n_candidates, act_dim, config.action_noise, config.delta)
+                        rng, config.n_candidates, act_dim, config.action_noise, config.delta
+                    )
                     values = None
                     if worst:  # only then are the candidates simulated and valued
-                        a_cand = np.clip(action + noises, low, high).astype(act_dtype)
+                        a_cand = clip(action + noises, low, high).astype(act_dtype)
                         cand = _peek(host, i, shadows[i].candidates(a_cand), config)
                         values = critic_value(critic, cand, np)
                     noise = noises[select_candidate(values, worst, ridx)]
                 else:
                     noise = rng.uniform(-config.action_noise, config.action_noise, act_dim)
                 # --- step, store the transition, reset a finished episode
-                executed = np.clip(action + noise, low, high).astype(act_dtype)
+                executed = clip(action + noise, low, high).astype(act_dtype)
                 obs, reward, terminated, truncated, info = env.step(executed)
                 host.ep_return[i] += reward
                 host.ep_length[i] += 1
@@ -711,8 +884,13 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
                 host.buf_terminated[i, k], host.buf_done[i, k] = terminated, terminated or truncated
                 host.obs_norm[i] = next_norm
                 if terminated or truncated:
-                    row = {"step": step, "seed": seeds[i], "episode": info["episode_index"],
-                           "return": host.ep_return[i], "length": host.ep_length[i]}
+                    row = {
+                        "step": step,
+                        "seed": seeds[i],
+                        "episode": info["episode_index"],
+                        "return": host.ep_return[i],
+                        "length": host.ep_length[i],
+                    }
                     row.update({f"p_{p}": info["dynamics"][p] for p in param_names})
                     logs["episodes"].write(row)
                     tb.write(step, {f"seed_{seeds[i]}/episode_return": host.ep_return[i]})
@@ -723,14 +901,23 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
             # --- update every seed on its full rollout, vmapped; lr decays linearly from the
             # previous update's step, as in the original
             if step % t_roll == 0:
-                lr = config.lr * (1.0 - (step - t_roll) / config.total_steps) if config.lr_decay \
+                lr = (
+                    config.lr * (1.0 - (step - t_roll) / config.total_steps)
+                    if config.lr_decay
                     else config.lr
-                batch = {"obs": host.buf_obs, "actions": host.buf_actions, "logp": host.buf_logp,
-                         "rewards": host.buf_rewards, "next_obs": host.buf_next_obs,
-                         "terminated": host.buf_terminated, "done": host.buf_done}
-                split = split_keys(update_keys)
-                update_keys = split[:, 0]
-                state, metrics = update(state, batch, split[:, 1], np.float32(lr), weight_reg)
+                )
+                batch = {
+                    "obs": host.buf_obs,
+                    "actions": host.buf_actions,
+                    "logp": host.buf_logp,
+                    "rewards": host.buf_rewards,
+                    "next_obs": host.buf_next_obs,
+                    "terminated": host.buf_terminated,
+                    "done": host.buf_done,
+                }
+                state, metrics, update_keys = update(
+                    state, batch, update_keys, np.float32(lr), weight_reg
+                )
                 host.metrics = np.asarray(metrics)
                 params = host_params(state)
             if step % config.log_every == 0:
@@ -740,8 +927,11 @@ def train(config: RNACConfig, run_dir: Path, resume: bool = False) -> None:
                 for i, s in enumerate(seeds):
                     scalars = dict(zip(METRICS, host.metrics[i].tolist()))
                     logs["train"].write({"step": step, "seed": s, "steps_per_s": sps, **scalars})
-                    tb.write(step, {f"seed_{s}/{k}": v for k, v in scalars.items()
-                                    if not math.isnan(v)} | {f"seed_{s}/steps_per_s": sps})
+                    tb.write(
+                        step,
+                        {f"seed_{s}/{k}": v for k, v in scalars.items() if not math.isnan(v)}
+                        | {f"seed_{s}/steps_per_s": sps},
+                    )
             if config.eval_episodes and step % config.eval_every == 0:
                 evaluate()
             if step % config.checkpoint_every == 0 or step == config.total_steps:

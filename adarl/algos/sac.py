@@ -15,7 +15,7 @@ steps (`update_every` steps, then `update_every` updates).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -31,7 +31,7 @@ LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
 
 
 # ============================================================================ config
-@dataclass
+@dataclass(frozen=True)
 class SACConfig:
     """Every hyperparameter of a SAC-family run. Defaults: the AdaRL paper's setting."""
 
@@ -205,7 +205,7 @@ class Spec:
     act_dim: int
     act_low: tuple
     act_high: tuple
-    config: SACConfig = field(compare=False)
+    config: SACConfig
 
 
 def make_spec(config: SACConfig, obs_dim: int, act_dim: int, low, high) -> Spec:
@@ -229,7 +229,8 @@ def init_state(spec: Spec, key: jnp.ndarray) -> dict:
     width = c.sparse_width or c.hidden[-1]
     init_rank = c.rank or None
     actor = {
-        "trunk": mlp.init_layers(k_actor, spec.actor, c.init, rank=init_rank),
+        "trunk": mlp.init_layers(k_actor, spec.actor, c.init, rank=init_rank,
+                                 has_output_layer=False),
         # the heads are output layers: gain 1 under orthogonal init
         "mu": mlp.init_layers(k_mu, (("dense", width, spec.act_dim),), c.init)[0],
         "log_std": mlp.init_layers(k_std, (("dense", width, spec.act_dim),), c.init)[0],
@@ -349,8 +350,8 @@ def regulariser(spec: Spec, layers, stacked: bool):
         return jnp.zeros(())
     layout = spec.critic if stacked else spec.actor
     if stacked:  # one penalty per Q-network, summed
-        return jnp.sum(jax.vmap(lambda p: parseval_penalty(p, layout, c))(layers))
-    return parseval_penalty(layers, layout, c)
+        return jnp.sum(jax.vmap(lambda p: parseval_penalty(p, layout, c, True))(layers))
+    return parseval_penalty(layers, layout, c, False)  # the actor trunk: every layer is hidden
 
 
 # ============================================================================ update

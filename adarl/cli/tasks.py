@@ -36,7 +36,9 @@ def run(args) -> int:
             print(f"  {kind + ':':<9} {text}")
         nominal = ", ".join(f"{p} = {s.center:g}" for p, s in task.schedules["paper"].items())
         print(f"  {'nominal:':<9} {nominal}")
-        ranges = ", ".join(f"{p} ~ U[{s.low:g}, {s.high:g}]" for p, s in task.schedules["paper"].items())
+        ranges = ", ".join(
+            f"{p} ~ U[{s.low:g}, {s.high:g}]" for p, s in task.schedules["paper"].items()
+        )
         print(f"  {'uniform:':<9} {ranges}  (i = episode index)")
         if task.stiffness_joints:
             print(
@@ -65,5 +67,7 @@ def _as_dict(task) -> dict:
         "uniform": {p: [s.low, s.high] for p, s in task.schedules["paper"].items()},
         "stiffness_joints": list(task.stiffness_joints),
         "spring_ref": task.spring_ref,
-        "medium": None if task.medium is None else {"density": task.medium[0], "viscosity": task.medium[1]},
+        "medium": None
+        if task.medium is None
+        else {"density": task.medium[0], "viscosity": task.medium[1]},
     }

@@ -6,6 +6,8 @@
 Task facts and schedules import without MuJoCo; `make`/`make_vec` load it on first use.
 """
 
+import importlib
+
 from adarl.envs.dynamics import DynamicsSchedule, parse_dynamics
 from adarl.envs.params import PARAMS, Sinusoid
 from adarl.envs.tasks import TaskSpec, get_task, list_tasks
@@ -28,7 +30,10 @@ _LAZY = {"make", "make_vec", "DynamicsEnv"}
 
 def __getattr__(name):
     if name in _LAZY:
-        from adarl.envs import env
-
-        return getattr(env, name)
+        try:
+            module = importlib.import_module("adarl.envs.env")
+        except AttributeError as exc:
+            # `from adarl.envs import make` would report it as a missing name, hiding the cause
+            raise ImportError(f"importing adarl.envs.env failed: {exc!r}") from exc
+        return getattr(module, name)
     raise AttributeError(f"module 'adarl.envs' has no attribute {name!r}")

@@ -68,7 +68,9 @@ class DynamicsSchedule:
             raise _default_takes_no_values("default")
         object.__setattr__(self, "task", spec.name)
         object.__setattr__(self, "constants", constants)
-        object.__setattr__(self, "sinusoids", {p: self.sinusoids[p] for p in spec.params if p in self.sinusoids})
+        object.__setattr__(
+            self, "sinusoids", {p: self.sinusoids[p] for p in spec.params if p in self.sinusoids}
+        )
         object.__setattr__(self, "_order", tuple(spec.params))
 
     @property
@@ -81,7 +83,9 @@ class DynamicsSchedule:
         """Whether `params_for_episode` draws random numbers (uniform mode)."""
         return self.mode == "uniform" and self.varies
 
-    def params_for_episode(self, i: int, rng: np.random.Generator | None = None) -> dict[str, float]:
+    def params_for_episode(
+        self, i: int, rng: np.random.Generator | None = None
+    ) -> dict[str, float]:
         """Parameters of episode `i` (>= 0): ``c + a·sin(f·i)`` per varying parameter, or in
         uniform mode one ``rng.uniform(c - |a|, c + |a|)`` draw each (rng=None: ``default_rng([0, i])``)."""
         if isinstance(i, bool) or not isinstance(i, int | np.integer) or i < 0:
@@ -95,12 +99,17 @@ class DynamicsSchedule:
 
     def centroid(self) -> dict[str, float]:
         """The nominal parameters: each sinusoid's centre c, constants as they are."""
-        return {p: self.sinusoids[p].center if p in self.sinusoids else self.constants[p] for p in self._order}
+        return {
+            p: self.sinusoids[p].center if p in self.sinusoids else self.constants[p]
+            for p in self._order
+        }
 
     def ranges(self) -> dict[str, tuple[float, float]]:
         """(low, high) each parameter takes: ``c ∓ |a|`` for varying ones, (v, v) for constants."""
         return {
-            p: (self.sinusoids[p].low, self.sinusoids[p].high) if p in self.sinusoids else (self.constants[p],) * 2
+            p: (self.sinusoids[p].low, self.sinusoids[p].high)
+            if p in self.sinusoids
+            else (self.constants[p],) * 2
             for p in self._order
         }
 
@@ -160,7 +169,9 @@ def parse_dynamics(text: str | DynamicsSchedule, task: str) -> DynamicsSchedule:
     base = {
         "paper": DynamicsSchedule(spec.name, "paper", sinusoids=paper),
         "ompo": DynamicsSchedule(spec.name, "ompo", sinusoids=spec.schedules["ompo"]),
-        "nominal": DynamicsSchedule(spec.name, "nominal", constants={p: s.center for p, s in paper.items()}),
+        "nominal": DynamicsSchedule(
+            spec.name, "nominal", constants={p: s.center for p, s in paper.items()}
+        ),
         "uniform": DynamicsSchedule(spec.name, "uniform", sinusoids=paper, mode="uniform"),
         "fixed": DynamicsSchedule(spec.name, "fixed"),
     }[kind]
@@ -176,7 +187,9 @@ def _default_takes_no_values(what: str) -> UsageError:
 
 def _check_name(spec, name: str) -> None:
     if name not in spec.params:
-        raise UsageError(f"unknown {spec.name} parameter {name!r}; allowed: {', '.join(spec.params)}")
+        raise UsageError(
+            f"unknown {spec.name} parameter {name!r}; allowed: {', '.join(spec.params)}"
+        )
 
 
 def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
@@ -193,6 +206,8 @@ def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
             )
         _check_name(spec, name)
         if name in values:
-            raise UsageError(f"parameter {name!r} given twice in dynamics {text!r}; allowed: once each")
+            raise UsageError(
+                f"parameter {name!r} given twice in dynamics {text!r}; allowed: once each"
+            )
         values[name] = PARAMS[name].check(value)
     return values

@@ -57,7 +57,9 @@ class DynamicsEnv(gymnasium.Wrapper):
             else ModelBuilder(task, self._raw.fullpath, textures=self._raw.render_mode is not None)
         )
         self._pending_seed = seed  # used by the first reset without a seed
-        self._schedule_seed = int(seed) if seed is not None else int(np.random.SeedSequence().entropy)
+        self._schedule_seed = (
+            int(seed) if seed is not None else int(np.random.SeedSequence().entropy)
+        )
         self._index = 0  # episode index of the current episode (or the next, before its reset)
         self._advance = False  # whether the next reset moves to _index + 1
         self._params: dict[str, float] | None = None  # parameters of the installed model
@@ -85,7 +87,7 @@ class DynamicsEnv(gymnasium.Wrapper):
 
     # ---- gymnasium API --------------------------------------------------------------------
     def step(self, action):
-        obs, reward, terminated, truncated, info = self._raw.step(action)
+        obs, reward, terminated, truncated, info = self.env.step(action)
         self._elapsed += 1
         if self._elapsed >= self.max_episode_steps:
             truncated = True
@@ -105,7 +107,7 @@ class DynamicsEnv(gymnasium.Wrapper):
             self._index += 1
         self._advance = True
         self._install(self._episode_params(self._index))
-        obs, info = self._raw.reset(seed=seed, options=options)
+        obs, info = self.env.reset(seed=seed, options=options)
         self._elapsed = 0
         info["dynamics"] = self._params
         info["episode_index"] = self._index
@@ -141,10 +143,14 @@ class DynamicsEnv(gymnasium.Wrapper):
     def set_state(self, state: dict) -> None:
         """Restore `get_state()` output, recompiling the model for the stored parameters."""
         if state.get("version") != _STATE_VERSION:
-            raise UsageError(f"bad env state version {state.get('version')!r}; allowed: {_STATE_VERSION}")
+            raise UsageError(
+                f"bad env state version {state.get('version')!r}; allowed: {_STATE_VERSION}"
+            )
         for key, mine in (("task", self.task.name), ("schedule", self.schedule.name)):
             if state[key] != mine:
-                raise UsageError(f"env state is for {key} {state[key]!r}; allowed: {mine!r} (this env's)")
+                raise UsageError(
+                    f"env state is for {key} {state[key]!r}; allowed: {mine!r} (this env's)"
+                )
         self._index, self._advance = int(state["episode_index"]), bool(state["advance"])
         self._schedule_seed, self._pending_seed = int(state["schedule_seed"]), state["pending_seed"]
         self._elapsed = int(state["elapsed_steps"])
@@ -153,14 +159,18 @@ class DynamicsEnv(gymnasium.Wrapper):
         self._install(dict(state["params"]))
         raw = self._raw
         mujoco.mj_resetData(raw.model, raw.data)
-        mujoco.mj_setState(raw.model, raw.data, np.asarray(state["mj_state"], dtype=np.float64), STATE_SIG)
+        mujoco.mj_setState(
+            raw.model, raw.data, np.asarray(state["mj_state"], dtype=np.float64), STATE_SIG
+        )
         for name, value in state["mj_derived"].items():
             getattr(raw.data, name)[...] = value
         raw.np_random.bit_generator.state = copy.deepcopy(state["np_random"])
 
     # ---- internals ----------------------------------------------------------------------------
     def _episode_params(self, index: int) -> dict[str, float]:
-        rng = np.random.default_rng([self._schedule_seed, index]) if self.schedule.needs_rng else None
+        rng = (
+            np.random.default_rng([self._schedule_seed, index]) if self.schedule.needs_rng else None
+        )
         return self.schedule.params_for_episode(index, rng)
 
     def _install(self, params: dict[str, float]) -> None:
@@ -197,7 +207,17 @@ class DynamicsEnv(gymnasium.Wrapper):
 
 
 def _sizes(model: mujoco.MjModel) -> tuple:
-    return (model.nq, model.nv, model.nu, model.na, model.nbody, model.ngeom, model.njnt, model.narena, model.nbuffer)
+    return (
+        model.nq,
+        model.nv,
+        model.nu,
+        model.na,
+        model.nbody,
+        model.ngeom,
+        model.njnt,
+        model.narena,
+        model.nbuffer,
+    )
 
 
 def make(
@@ -214,9 +234,15 @@ def make(
     schedule's draws: the same seed gives the same parameter sequence."""
     spec = get_task(task)
     schedule = parse_dynamics(dynamics, spec.name).with_overrides(**overrides)
-    if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, int) or max_episode_steps < 1:
+    if (
+        isinstance(max_episode_steps, bool)
+        or not isinstance(max_episode_steps, int)
+        or max_episode_steps < 1
+    ):
         raise UsageError(f"bad max_episode_steps {max_episode_steps!r}; allowed: an integer >= 1")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0):
+    if seed is not None and (
+        isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0
+    ):
         raise UsageError(f"bad seed {seed!r}; allowed: an integer >= 0 or None")
     gym_spec = gymnasium.spec(spec.gym_id)
     raw = load_env_creator(gym_spec.entry_point)(render_mode=render_mode)

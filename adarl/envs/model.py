@@ -67,7 +67,9 @@ class ModelBuilder:
         """`textures=False` drops the (visual-only, slow to generate) textures: use it when the
         model is never rendered."""
         self.task = task if isinstance(task, TaskSpec) else get_task(task)
-        self.spec = mujoco.MjSpec.from_file(xml_path or expand_model_path(XML_FILES[self.task.name]))
+        self.spec = mujoco.MjSpec.from_file(
+            xml_path or expand_model_path(XML_FILES[self.task.name])
+        )
         if not textures:
             _strip_textures(self.spec)
         self._base = _Snapshot(self.spec, self.task)
@@ -82,7 +84,9 @@ class ModelBuilder:
         return model
 
 
-def compile_model(task: str, params: dict[str, float] | None = None, textures: bool = False) -> mujoco.MjModel:
+def compile_model(
+    task: str, params: dict[str, float] | None = None, textures: bool = False
+) -> mujoco.MjModel:
     """One-off `ModelBuilder(task).compile(defaults | params)`."""
     spec = get_task(task)
     return ModelBuilder(spec, textures=textures).compile(dict(spec.params) | dict(params or {}))
@@ -94,7 +98,10 @@ class _Snapshot:
     def __init__(self, spec: mujoco.MjSpec, task: TaskSpec):
         self.geoms = [(g, g.density, g.mass, np.array(g.friction)) for g in spec.geoms]
         self.joints = [(j, np.array(j.damping)) for j in spec.joints]
-        self.stiff = [(spec.joint(n), np.array(spec.joint(n).stiffness), spec.joint(n).springref) for n in task.stiffness_joints]
+        self.stiff = [
+            (spec.joint(n), np.array(spec.joint(n).stiffness), spec.joint(n).springref)
+            for n in task.stiffness_joints
+        ]
         opt = spec.option
         self.option = (np.array(opt.gravity), np.array(opt.wind), opt.density, opt.viscosity)
         layout = LAYOUTS.get(task.name)
@@ -102,7 +109,10 @@ class _Snapshot:
             torso = spec.body(layout.torso_body)
             hips = [spec.body(n) for n in layout.hip_bodies]
             self.torso = (torso, np.array(torso.pos))
-            self.torso_geom = (spec.geom(layout.torso_geom), np.array(spec.geom(layout.torso_geom).size))
+            self.torso_geom = (
+                spec.geom(layout.torso_geom),
+                np.array(spec.geom(layout.torso_geom).size),
+            )
             self.hips = [(h, np.array(h.pos)) for h in hips]
             self.slides = [(spec.joint(n), np.array(spec.joint(n).pos)) for n in layout.root_slides]
             self.feet = [(spec.geom(n), np.array(spec.geom(n).size)) for n in layout.foot_geoms]
@@ -138,7 +148,9 @@ def apply_params(
 
     if task.name in LAYOUTS:
         if changed("torso"):
-            _set_torso(base, params["torso_length"], params["torso_length"] == defaults["torso_length"])
+            _set_torso(
+                base, params["torso_length"], params["torso_length"] == defaults["torso_length"]
+            )
         if changed("feet"):
             _set_feet(base, params["foot_length"], params["foot_length"] == defaults["foot_length"])
     if changed("mass"):

@@ -36,8 +36,7 @@ class Param:
         except (TypeError, ValueError):
             number = math.nan
         ok = math.isfinite(number) and (
-            self.lower is None
-            or (number > self.lower if self.strict else number >= self.lower)
+            self.lower is None or (number > self.lower if self.strict else number >= self.lower)
         )
         if not ok:
             raise UsageError(f"bad value {value!r} for {self.name}; allowed: {self.allowed}")

@@ -11,7 +11,6 @@ Lengths are capsule half-lengths (Gymnasium: Hopper torso 0.2 / foot 0.195, Walk
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from types import MappingProxyType
 
 from adarl.envs.params import PARAMS, Sinusoid
 from adarl.errors import check_choice
@@ -31,8 +30,8 @@ class TaskSpec:
     gym_id: str
     obs_dim: int
     act_dim: int
-    params: MappingProxyType
-    schedules: MappingProxyType  # "paper" / "ompo" -> {param: Sinusoid}
+    params: dict[str, float]  # shared: do not mutate
+    schedules: dict[str, dict[str, Sinusoid]]  # "paper" / "ompo" -> {param: Sinusoid}
     medium: tuple[float, float] | None = None  # (density, viscosity) outside `default` mode
     stiffness_joints: tuple[str, ...] = ()
     spring_ref: float = 0.0  # rad; the spring reference of `stiffness_joints`
@@ -51,7 +50,8 @@ class TaskSpec:
     def formulas(self) -> dict[str, dict[str, str]]:
         """Schedule formulas as text: {"paper": {"torso_length": "0.4 + 0.2·sin(0.2·i)"}, ...}."""
         return {
-            kind: {p: s.formula() for p, s in sched.items()} for kind, sched in self.schedules.items()
+            kind: {p: s.formula() for p, s in sched.items()}
+            for kind, sched in self.schedules.items()
         }
 
 
@@ -65,10 +65,8 @@ def _task(name, gym_id, obs_dim, act_dim, varied_defaults, paper, ompo=None, **e
         gym_id=gym_id,
         obs_dim=obs_dim,
         act_dim=act_dim,
-        params=MappingProxyType(params),
-        schedules=MappingProxyType(
-            {"paper": MappingProxyType(paper), "ompo": MappingProxyType(ompo or paper)}
-        ),
+        params=params,
+        schedules={"paper": dict(paper), "ompo": dict(ompo or paper)},
         **extra,
     )
 
@@ -82,7 +80,10 @@ TASKS: dict[str, TaskSpec] = {
             11,
             3,
             {"torso_length": 0.2, "foot_length": 0.195},
-            paper={"torso_length": Sinusoid(0.4, 0.2, 0.2), "foot_length": Sinusoid(0.39, 0.2, 0.2)},
+            paper={
+                "torso_length": Sinusoid(0.4, 0.2, 0.2),
+                "foot_length": Sinusoid(0.39, 0.2, 0.2),
+            },
             ompo={"torso_length": Sinusoid(0.4, 0.1, 0.2), "foot_length": Sinusoid(0.39, 0.1, 0.2)},
             # RNAC's Hopper sweep writes springref 2.0 rad to the hopper's joints (leg stiffened).
             stiffness_joints=("leg_joint", "foot_joint"),
@@ -94,7 +95,10 @@ TASKS: dict[str, TaskSpec] = {
             17,
             6,
             {"torso_length": 0.2, "foot_length": 0.1},
-            paper={"torso_length": Sinusoid(0.2, 0.1, 0.3), "foot_length": Sinusoid(0.1, 0.05, 0.3)},
+            paper={
+                "torso_length": Sinusoid(0.2, 0.1, 0.3),
+                "foot_length": Sinusoid(0.1, 0.05, 0.3),
+            },
             # RNAC's Walker2d env sets no springref: the spring pulls towards the standing pose.
             stiffness_joints=("foot_joint", "foot_left_joint"),
             spring_ref=0.0,

@@ -88,8 +88,13 @@ class Unit:
 
 
 # ----------------------------------------------------------------------------- planning
+GYM_PREFIX = "gym:"  # plain Gymnasium tasks (`gym:Pendulum-v1`): fixed dynamics, no parameters
+
+
 def task_parameters(task: str) -> list[str]:
     """Names of the physical parameters of `task` (from `adarl.envs.get_task`)."""
+    if task.startswith(GYM_PREFIX):
+        return []
     from adarl.envs import get_task
 
     return list(get_task(task).params)
@@ -97,6 +102,10 @@ def task_parameters(task: str) -> list[str]:
 
 def check_dynamics(spec: str, task: str) -> None:
     """Let `adarl.envs.parse_dynamics` reject a bad spec before any work starts."""
+    if task.startswith(GYM_PREFIX):
+        if spec not in ("nominal", "paper", "default"):
+            raise UsageError(f"task {task!r} has fixed dynamics; allowed: nominal")
+        return
     from adarl.envs import parse_dynamics
 
     parse_dynamics(spec, task)

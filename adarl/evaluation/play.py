@@ -171,7 +171,8 @@ def play(
     prepare_backend()
     from adarl.envs import make
 
-    env = make(task, dynamics=dynamics, seed=seed, **(overrides or {}))
+    # render_mode keeps the model's textures (floor, sky); we render with our own camera
+    env = make(task, dynamics=dynamics, seed=seed, render_mode="rgb_array", **(overrides or {}))
     try:
         stride, video_fps = frame_stride(env, fps)
         video.parent.mkdir(parents=True, exist_ok=True)

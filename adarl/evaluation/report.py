@@ -34,7 +34,7 @@ import pandas as pd
 
 from adarl import __version__
 from adarl.errors import UsageError
-from adarl.evaluation import collect, figures, stats, tables
+from adarl.evaluation import collect, compare, figures, tables
 from adarl.evaluation.runs import (
     Run,
     config_value,
@@ -260,242 +260,136 @@ def _seed_counts(table: tables.ScoreTable) -> str:
     return ", ".join(map(str, counts))
 
 
-def score_matrix(scores: pd.DataFrame, method: str, tasks: Sequence[str]) -> np.ndarray:
-    """`(n_seeds, n_tasks)` scores of one method; every task keeps the same number of seeds
-    (the smallest count over `tasks`, lowest seeds first)."""
-    columns = []
-    for task in tasks:
-        rows = scores[(scores["method"] == method) & (scores["task"] == task)].sort_values("seed")
-        columns.append(rows["score"].to_numpy(float))
-    n = min(len(c) for c in columns)
-    return np.stack([c[:n] for c in columns], axis=1)
+def _interval(point: float, low: float, high: float, digits: int) -> tuple[str, str]:
+    return f"{point:.{digits}f}", f"[{low:.{digits}f}, {high:.{digits}f}]"
 
 
 def statistics_sections(
     scores: pd.DataFrame, folder: Path, options: ReportOptions, notes: list[str]
 ) -> list[Section]:
+    """Aggregate IQM/mean, per-task IQM/mean, probability of improvement, performance profiles."""
     if scores.empty:
         return []
-    tasks = sort_tasks(scores["task"])
-    methods = sort_methods(scores["method"])
-    covering = [m for m in methods if set(tasks) <= set(scores.loc[scores["method"] == m, "task"])]
-    left_out = [m for m in methods if m not in covering]
-    if left_out:
+    normalised = compare.normalise(scores)
+    if normalised.left_out:
         notes.append(
             "Aggregate statistics and performance profiles cover methods run on every task "
-            f"({', '.join(tasks)}); left out: {', '.join(left_out)}."
+            f"({', '.join(normalised.tasks)}); left out: {', '.join(normalised.left_out)}."
         )
-    reps, conf = options.bootstrap_reps, options.confidence
-    low = scores.groupby("task")["score"].min().reindex(tasks).to_numpy()
-    high = scores.groupby("task")["score"].max().reindex(tasks).to_numpy()
-    normalised = {
-        m: stats.minmax_normalise(score_matrix(scores, m, tasks), low, high) for m in covering
-    }
-    for m in covering:
-        counts = scores[scores["method"] == m].groupby("task").size()
-        if counts.nunique() > 1:
-            notes.append(
-                f"{m}: tasks have different seed counts; aggregates use the first {counts.min()} seeds of each."
-            )
-
-    # aggregate (normalised, across tasks)
-    rows = []
-    for i, m in enumerate(covering):
-        for metric, fn in (("IQM", stats.iqm), ("Mean", stats.mean)):
-            ci = stats.bootstrap_ci(normalised[m], fn, reps, conf, options.seed + i)
-            rows.append(
-                {
-                    "method": m,
-                    "metric": metric,
-                    "point": ci.point,
-                    "low": ci.low,
-                    "high": ci.high,
-                    "runs": normalised[m].shape[0],
-                    "tasks": len(tasks),
-                }
-            )
-    aggregate = pd.DataFrame(rows)
-    files = [
-        _write(folder, "tables/aggregate.csv", aggregate.to_csv(index=False, float_format="%.6g"))
+    for m in normalised.uneven:
+        notes.append(
+            f"{m}: tasks have different seed counts; aggregates use as many seeds per task as "
+            "the task with the fewest."
+        )
+    sections = [
+        aggregate_section(normalised, folder, options),
+        per_task_section(scores, folder, options),
     ]
-    text = (
-        f"Final returns min–max normalised per task over all methods and seeds "
-        f"(0 = the lowest, 1 = the highest seed's return on that task), then aggregated over "
-        f"{len(tasks)} task(s) and their seeds. Intervals: {conf:.0%} stratified bootstrap "
-        f"({reps} resamples, seed {options.seed}).\n\n"
-    )
-    if not aggregate.empty:
-        md = tables.markdown_table(
-            ["method", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI", "runs × tasks"],
-            [
-                [
-                    m,
-                    _r(aggregate, m, "IQM", "point"),
-                    _ci(aggregate, m, "IQM"),
-                    _r(aggregate, m, "Mean", "point"),
-                    _ci(aggregate, m, "Mean"),
-                    f"{normalised[m].shape[0]} × {len(tasks)}",
-                ]
-                for m in covering
-            ],
-        )
-        files.append(_write(folder, "tables/aggregate.md", md))
-        files += _figure(folder, figures.aggregate_intervals(aggregate), "aggregate_iqm_mean")
-        text += md
-    sections = [Section("Aggregate statistics (rliable)", text, files)]
-
-    # per task, raw returns
-    rows = []
-    for t_i, task in enumerate(tasks):
-        for m_i, m in enumerate(methods):
-            sub = scores[(scores["method"] == m) & (scores["task"] == task)]
-            if sub.empty:
-                continue
-            matrix = sub["score"].to_numpy(float)[:, None]
-            seed = options.seed + 1000 + 100 * t_i + m_i
-            iqm = stats.bootstrap_ci(matrix, stats.iqm, reps, conf, seed)
-            mean = stats.bootstrap_ci(matrix, stats.mean, reps, conf, seed)
-            rows.append(
-                {
-                    "task": task,
-                    "method": m,
-                    "seeds": len(sub),
-                    "iqm": iqm.point,
-                    "iqm_low": iqm.low,
-                    "iqm_high": iqm.high,
-                    "mean": mean.point,
-                    "mean_low": mean.low,
-                    "mean_high": mean.high,
-                }
-            )
-    per_task = pd.DataFrame(rows)
-    md = tables.markdown_table(
-        ["task", "method", "seeds", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI"],
-        [
-            [
-                r.task,
-                r.method,
-                r.seeds,
-                f"{r.iqm:.1f}",
-                f"[{r.iqm_low:.1f}, {r.iqm_high:.1f}]",
-                f"{r.mean:.1f}",
-                f"[{r.mean_low:.1f}, {r.mean_high:.1f}]",
-            ]
-            for r in per_task.itertuples()
-        ],
-    )
-    sections.append(
-        Section(
-            "Per-task IQM and mean (raw returns)",
-            md,
-            [
-                _write(
-                    folder, "tables/per_task.csv", per_task.to_csv(index=False, float_format="%.6g")
-                ),
-                _write(folder, "tables/per_task.md", md),
-            ],
-        )
-    )
-
-    # probability of improvement of AdaRL over each baseline, on the tasks both ran
-    if REFERENCE in methods:
-        rows = []
-        ref_tasks = set(scores.loc[scores["method"] == REFERENCE, "task"])
-        for i, m in enumerate(m for m in methods if m != REFERENCE):
-            common = [
-                t
-                for t in tasks
-                if t in ref_tasks and t in set(scores.loc[scores["method"] == m, "task"])
-            ]
-            if not common:
-                continue
-            x, y = score_matrix(scores, REFERENCE, common), score_matrix(scores, m, common)
-            ci = stats.probability_of_improvement_ci(x, y, reps, conf, options.seed + 2000 + i)
-            rows.append(
-                {
-                    "baseline": m,
-                    "tasks": " ".join(common),
-                    "point": ci.point,
-                    "low": ci.low,
-                    "high": ci.high,
-                }
-            )
-        if rows:
-            poi = pd.DataFrame(rows)
-            md = tables.markdown_table(
-                ["comparison", "tasks", "P(X > Y)", f"{conf:.0%} CI"],
-                [
-                    [
-                        f"{REFERENCE} > {r.baseline}",
-                        r.tasks,
-                        f"{r.point:.3f}",
-                        f"[{r.low:.3f}, {r.high:.3f}]",
-                    ]
-                    for r in poi.itertuples()
-                ],
-            )
-            text = (
-                f"Probability that a random seed of {REFERENCE} ends with a higher return than a random "
-                "seed of the baseline on the same task (ties count ½), averaged over the tasks both "
-                "ran; 0.5 means no difference. Intervals: stratified bootstrap, each method "
-                f"resampled independently.\n\n{md}"
-            )
-            files = [
-                _write(
-                    folder,
-                    "tables/probability_of_improvement.csv",
-                    poi.to_csv(index=False, float_format="%.6g"),
-                ),
-                _write(folder, "tables/probability_of_improvement.md", md),
-            ]
-            files += _figure(
-                folder,
-                figures.probability_of_improvement(poi, REFERENCE),
-                "probability_of_improvement",
-            )
-            sections.append(Section("Probability of improvement", text, files))
+    if REFERENCE in set(scores["method"]):
+        sections.append(improvement_section(scores, folder, options))
     else:
         notes.append(f"No {REFERENCE!r} runs: probability of improvement is not computed.")
-
-    # performance profiles
-    if covering:
-        taus = np.linspace(0.0, 1.0, 101)
-        profiles = {
-            m: stats.performance_profile_ci(
-                normalised[m], taus, reps, conf, options.seed + 3000 + i
-            )
-            for i, m in enumerate(covering)
-        }
-        frame = pd.DataFrame({"tau": taus})
-        for m, (p, lo, hi) in profiles.items():
-            frame[m], frame[f"{m} low"], frame[f"{m} high"] = p, lo, hi
-        files = [
-            _write(
-                folder,
-                "tables/performance_profiles.csv",
-                frame.to_csv(index=False, float_format="%.6g"),
-            )
-        ]
-        files += _figure(
-            folder, figures.performance_profiles(taus, profiles), "performance_profiles"
-        )
-        sections.append(
-            Section(
-                "Performance profiles",
-                "Fraction of runs (seeds × tasks) whose normalised final return exceeds τ, with "
-                f"{conf:.0%} stratified-bootstrap bands.\n",
-                files,
-            )
-        )
+    if normalised.matrices:
+        sections.append(profile_section(normalised, folder, options))
     return sections
 
 
-def _r(df, method, metric, column):
-    return f"{df[(df['method'] == method) & (df['metric'] == metric)][column].iloc[0]:.3f}"
+def aggregate_section(
+    normalised: compare.Normalised, folder: Path, options: ReportOptions
+) -> Section:
+    reps, conf = options.bootstrap_reps, options.confidence
+    estimates = compare.aggregate_estimates(normalised, reps, conf, options.seed)
+    title = "Aggregate statistics (rliable)"
+    text = (
+        "Final returns min–max normalised per task over all methods and seeds (0 = the lowest, "
+        f"1 = the highest seed's return on that task), then aggregated over "
+        f"{len(normalised.tasks)} task(s) and their seeds. Intervals: {conf:.0%} stratified "
+        f"bootstrap ({reps} resamples, seed {options.seed}).\n\n"
+    )
+    files = [_write(folder, "tables/aggregate.csv", _csv(estimates))]
+    if estimates.empty:
+        return Section(title, text + "No method ran on every task.\n", files)
+    rows = []
+    for method, matrix in normalised.matrices.items():
+        by_metric = estimates[estimates["method"] == method].set_index("metric")
+        iqm = _interval(*by_metric.loc["IQM", ["point", "low", "high"]], 3)
+        mean = _interval(*by_metric.loc["Mean", ["point", "low", "high"]], 3)
+        rows.append([method, *iqm, *mean, f"{matrix.shape[0]} × {matrix.shape[1]}"])
+    header = ["method", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI"]
+    md = tables.markdown_table([*header, "seeds × tasks"], rows)
+    files.append(_write(folder, "tables/aggregate.md", md))
+    files += _figure(folder, figures.aggregate_intervals(estimates), "aggregate_iqm_mean")
+    return Section(title, text + md, files)
 
 
-def _ci(df, method, metric):
-    return f"[{_r(df, method, metric, 'low')}, {_r(df, method, metric, 'high')}]"
+def per_task_section(scores: pd.DataFrame, folder: Path, options: ReportOptions) -> Section:
+    conf = options.confidence
+    estimates = compare.per_task_estimates(
+        scores, options.bootstrap_reps, conf, options.seed + 1000
+    )
+    rows = [
+        [r.task, r.method, r.seeds, *_interval(r.iqm, r.iqm_low, r.iqm_high, 1),
+         *_interval(r.mean, r.mean_low, r.mean_high, 1)]
+        for r in estimates.itertuples()
+    ]  # fmt: skip
+    header = ["task", "method", "seeds", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI"]
+    md = tables.markdown_table(header, rows)
+    files = [
+        _write(folder, "tables/per_task.csv", _csv(estimates)),
+        _write(folder, "tables/per_task.md", md),
+    ]
+    return Section("Per-task IQM and mean (raw returns)", md, files)
+
+
+def improvement_section(scores: pd.DataFrame, folder: Path, options: ReportOptions) -> Section:
+    conf = options.confidence
+    estimates = compare.improvement_estimates(
+        scores, REFERENCE, options.bootstrap_reps, conf, options.seed + 2000
+    )
+    title = "Probability of improvement"
+    if estimates.empty:
+        return Section(title, f"No baseline ran on a task {REFERENCE} ran.\n")
+    rows = [
+        [f"{REFERENCE} > {r.baseline}", r.tasks, *_interval(r.point, r.low, r.high, 3)]
+        for r in estimates.itertuples()
+    ]
+    md = tables.markdown_table(["comparison", "tasks", "P(X > Y)", f"{conf:.0%} CI"], rows)
+    text = (
+        f"Probability that a random seed of {REFERENCE} ends with a higher return than a random "
+        "seed of the baseline on the same task (ties count ½), averaged over the tasks both ran; "
+        "0.5 means no difference. Intervals: stratified bootstrap, each method resampled "
+        f"independently.\n\n{md}"
+    )
+    files = [
+        _write(folder, "tables/probability_of_improvement.csv", _csv(estimates)),
+        _write(folder, "tables/probability_of_improvement.md", md),
+    ]
+    fig = figures.probability_of_improvement(estimates, REFERENCE)
+    return Section(title, text, files + _figure(folder, fig, "probability_of_improvement"))
+
+
+def profile_section(
+    normalised: compare.Normalised, folder: Path, options: ReportOptions
+) -> Section:
+    taus = np.linspace(0.0, 1.0, 101)
+    conf = options.confidence
+    profiles = compare.profile_estimates(
+        normalised, taus, options.bootstrap_reps, conf, options.seed + 3000
+    )
+    frame = pd.DataFrame({"tau": taus})
+    for m, (p, lo, hi) in profiles.items():
+        frame[m], frame[f"{m} low"], frame[f"{m} high"] = p, lo, hi
+    files = [_write(folder, "tables/performance_profiles.csv", _csv(frame))]
+    files += _figure(folder, figures.performance_profiles(taus, profiles), "performance_profiles")
+    text = (
+        "Fraction of runs (seeds × tasks) whose normalised final return exceeds τ, with "
+        f"{conf:.0%} stratified-bootstrap bands.\n"
+    )
+    return Section("Performance profiles", text, files)
+
+
+def _csv(df: pd.DataFrame) -> str:
+    return df.to_csv(index=False, float_format="%.6g")
 
 
 def training_section(runs: list[Run], folder: Path, colours) -> Section:
@@ -631,7 +525,7 @@ def bias_variance_section(fixed: list[Run], runs: list[Run], finals: dict, folde
             actor = final[final["layer"].str.startswith("actor")] if not final.empty else final
             ranks += (actor if not actor.empty else final)["rank"].astype(float).tolist()
             adarl_scores += finals[r.path][0]["score"].tolist()
-        intrinsic = intrinsic_rank(fixed[0])
+        intrinsic = intrinsic_rank(next(r for r in fixed if r.task == task))
         fig = figures.bias_variance(
             data, ranks or None, adarl_scores or None, intrinsic, f"{task}: return against rank"
         )
@@ -676,11 +570,15 @@ def ablation_section(runs: list[Run], folder: Path) -> Section:
         if len(histories) < 2:
             continue
         merged = {rule: pd.concat(h, ignore_index=True) for rule, h in sorted(histories.items())}
-        fig = figures.rank_rule_ablation(merged, intrinsic_rank(adarl[0]), task, sorted(steps))
+        fig = figures.rank_rule_ablation(
+            merged, intrinsic_rank(next(r for r in adarl if r.task == task)), task, sorted(steps)
+        )
         files += _figure(folder, fig, f"rank_rule_ablation_{task}")
         for rule, h in merged.items():
             last = h.sort_values("step").groupby(["seed", "layer"])["rank"].last()
-            lines.append(f"- {task}, {rule}: final ranks {sorted(int(v) for v in last)}")
+            per_layer = last.groupby("layer").mean()
+            ranks = ", ".join(f"{layer} {value:.3g}" for layer, value in per_layer.items())
+            lines.append(f"- {task}, {rule}: final rank (mean over seeds): {ranks}")
     if not files:
         return Section(
             "Rank-rule ablation", "Needs `adarl` runs with both rank rules on one task.\n"

@@ -37,7 +37,6 @@ _LAUNCH_KEYS = {
     "host",
     "hostname",
     "progress",
-    "total_steps",
 }
 
 

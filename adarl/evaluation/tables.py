@@ -139,7 +139,8 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> s
         return isinstance(x, int | float) or bool(_NUMBER.match(str(x)))
 
     align = [":---"] + [
-        "---:" if rows and all(numeric(r[i]) for r in rows) else ":---" for i in range(1, len(header))
+        "---:" if rows and all(numeric(r[i]) for r in rows) else ":---"
+        for i in range(1, len(header))
     ]
     lines = ["| " + " | ".join(text(h) for h in header) + " |", "| " + " | ".join(align) + " |"]
     lines += ["| " + " | ".join(text(x) for x in row) + " |" for row in rows]

@@ -55,13 +55,15 @@ def _torch_uniform(key, shape, fan_in, dtype):
 
 
 def init_layers(key, layout: tuple, init: str = "torch", gain: float = 2.0**0.5,
-                out_gain: float = 1.0, rank: int | None = None, dtype=jnp.float32) -> list[dict]:
+                out_gain: float = 1.0, rank: int | None = None, has_output_layer: bool = True,
+                dtype=jnp.float32) -> list[dict]:
     """Initialise parameters for `layout`.
 
     `torch`: PyTorch's nn.Linear defaults (what Spinning Up, and so the paper, uses); a bottleneck
     of rank r is nn.Linear(n_in, r, bias=False) then nn.Linear(r, n_out). `orthogonal`:
-    orthogonal weights with `gain` on hidden layers and `out_gain` on the last, zero biases
-    (Parseval). Bottleneck components past `rank` (default: full width) are exactly zero.
+    orthogonal weights with `gain` on hidden layers and `out_gain` on the output layer (the last
+    one, when `has_output_layer`), zero biases (Parseval). Bottleneck components past `rank`
+    (default: full width) are exactly zero.
     """
     if init not in INITS:
         raise ValueError(f"unknown init {init!r}; allowed: {', '.join(INITS)}")
@@ -70,7 +72,7 @@ def init_layers(key, layout: tuple, init: str = "torch", gain: float = 2.0**0.5,
     last = max(i for i, spec in enumerate(layout) if spec[0] != "sparse")
     for i, (spec, k) in enumerate(zip(layout, keys)):
         k1, k2, k3 = jax.random.split(k, 3)
-        g = out_gain if i == last else gain
+        g = out_gain if (has_output_layer and i == last) else gain
         if spec[0] == "dense":
             _, n_in, n_out = spec
             if init == "torch":
@@ -93,10 +95,9 @@ def init_layers(key, layout: tuple, init: str = "torch", gain: float = 2.0**0.5,
                 b = jnp.zeros((n_out,), dtype)
             keep = (jnp.arange(width) < r).astype(dtype)
             params.append({"w1": w1 * keep[None, :], "w2": w2 * keep[:, None], "b": b})
-        else:  # sparse coding dictionary, initialised near the identity
-            _, n = spec
-            d = jnp.eye(n, dtype=dtype) + 0.01 * jax.random.normal(k1, (n, n), dtype)
-            params.append({"d": d})
+        else:  # sparse-coding dictionary, initialised at the identity: the first step is then a
+            _, n = spec  # pure soft threshold, ReLU(x − ηλ), and never denser than its input
+            params.append({"d": jnp.eye(n, dtype=dtype)})
     return params
 
 
@@ -138,12 +139,14 @@ def fixed_rank_masks(layout: tuple, rank: int, dtype=jnp.float32) -> list:
     ]
 
 
-def hidden_weights(params: list[dict], layout: tuple) -> list[jnp.ndarray]:
-    """Weight matrices of all but the last dense/bottleneck layer (bottleneck: the product)."""
+def hidden_weights(params: list[dict], layout: tuple, has_output_layer: bool) -> list[jnp.ndarray]:
+    """Weight matrices of the hidden layers (bottleneck: the product W1·W2); the last layer is
+    left out when it is the network's output layer (a critic), not when the network is a trunk
+    followed by heads (the actor)."""
     last = max(i for i, spec in enumerate(layout) if spec[0] != "sparse")
     out = []
     for i, (spec, p) in enumerate(zip(layout, params)):
-        if i == last or spec[0] == "sparse":
+        if (has_output_layer and i == last) or spec[0] == "sparse":
             continue
         out.append(p["w"] if spec[0] == "dense" else p["w1"] @ p["w2"])
     return out

@@ -11,7 +11,7 @@ The host appends rows in chunks (`append_rows`): every chunk ends with a *provis
 the observation the next action will be taken from (valid = 0); the next chunk starts by
 overwriting it with the full row. Sampling draws rows uniformly among those written and rejects
 invalid ones (pseudo and provisional rows), redrawing up to `REDRAWS` times; a row still invalid
-after that falls back to its predecessor, which is always a valid transition.
+after that (probability ≈ (episodes/rows)^5) falls back to the nearest valid row before it.
 All functions are pure and jit/vmap-friendly; `capacity` is static (from array shapes).
 """
 
@@ -62,7 +62,10 @@ def sample_indices(buf: dict, key: jnp.ndarray, batch_size: int) -> jnp.ndarray:
     for k in keys[1:]:
         redraw = jax.random.randint(k, (batch_size,), 0, high)
         idx = jnp.where(buf["valid"][idx] == 1, idx, redraw)
-    return jnp.where(buf["valid"][idx] == 1, idx, (idx - 1) % capacity)
+    # a pseudo-row follows a valid row; the provisional row may follow a pseudo-row
+    prev = (idx - 1) % capacity
+    fallback = jnp.where(buf["valid"][prev] == 1, prev, (idx - 2) % capacity)
+    return jnp.where(buf["valid"][idx] == 1, idx, fallback)
 
 
 def sample(buf: dict, key: jnp.ndarray, batch_size: int) -> dict:

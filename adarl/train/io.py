@@ -72,6 +72,12 @@ class CsvLog:
         self.path = Path(path)
         self.columns = list(columns)
         new = not self.path.exists() or self.path.stat().st_size == 0
+        if not new:  # appending (a resumed run): keep the file's own column order
+            with open(self.path, encoding="utf-8", newline="") as f:
+                existing = next(csv.reader(f), [])
+            if sorted(existing) != sorted(self.columns):
+                raise UsageError(f"{self.path} has columns {existing}, expected {self.columns}")
+            self.columns = existing
         self._file = open(self.path, "a", newline="", encoding="utf-8")
         self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="raise")
         if new:

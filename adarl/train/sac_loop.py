@@ -48,7 +48,9 @@ class Compiled:
     diagnostics: callable
 
 
+@functools.lru_cache(maxsize=8)
 def compile_functions(spec: sac.Spec) -> Compiled:
+    """Jitted functions for `spec` (cached: runs with the same spec share compilations)."""
     c = spec.config
     vmap = jax.vmap
     append = functools.partial(sac.append_and_update, spec, n_updates=0)
@@ -92,15 +94,17 @@ class Run:
     """Host-side state of a run: environments, counters, logs. Pure data plus the loop."""
 
     def __init__(self, config: sac.SACConfig, run_dir: Path, progress: bool = True):
-        from adarl.envs import get_task, make
+        from adarl.envs import get_task
+        from adarl.envs.plain import PREFIX, make_any
 
         self.config = config.validate()
         self.run_dir = Path(run_dir)
         self.progress = progress
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
-        get_task(config.task)  # a one-line error for an unknown task before anything is built
-        self.envs = [make(config.task, dynamics=config.dynamics, seed=s,
+        if not config.task.startswith(PREFIX):
+            get_task(config.task)  # a one-line error for an unknown task before anything is built
+        self.envs = [make_any(config.task, dynamics=config.dynamics, seed=s,
                           max_episode_steps=config.max_episode_steps) for s in self.seeds]
         space = self.envs[0].action_space
         self.spec = sac.make_spec(config, self.envs[0].observation_space.shape[0],

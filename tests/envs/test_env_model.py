@@ -21,7 +21,9 @@ def capsule_mass(radius, half_length, density=DENSITY):
 def lowest_point(model, data, geom):
     """Lowest z of a capsule/sphere geom: centre z - (radius + half-length·|axis_z|)."""
     axis_z = data.geom_xmat[geom].reshape(3, 3)[2, 2]
-    half = model.geom_size[geom][1] if model.geom_type[geom] == mujoco.mjtGeom.mjGEOM_CAPSULE else 0.0
+    half = (
+        model.geom_size[geom][1] if model.geom_type[geom] == mujoco.mjtGeom.mjGEOM_CAPSULE else 0.0
+    )
     return data.geom_xpos[geom][2] - model.geom_size[geom][0] - half * abs(axis_z)
 
 
@@ -40,7 +42,9 @@ def test_torso_mass_grows_with_length(task):
         torso = model.body("torso").id
         masses.append(model.body_mass[torso])
         assert model.body_mass[torso] == pytest.approx(capsule_mass(TORSO_RADIUS, length), rel=1e-9)
-        assert model.geom_rbound[model.geom("torso_geom").id] == pytest.approx(TORSO_RADIUS + length)
+        assert model.geom_rbound[model.geom("torso_geom").id] == pytest.approx(
+            TORSO_RADIUS + length
+        )
     assert np.all(np.diff(masses) > 0)
 
 
@@ -50,14 +54,29 @@ def test_torso_matches_independently_recompiled_xml():
     xml = open(expand_model_path(XML_FILES["hopper"])).read()
     xml = (
         xml.replace('<body name="torso" pos="0 0 1.25">', '<body name="torso" pos="0 0 1.55">')
-        .replace('name="torso_geom" size="0.05 0.19999999999999996"', 'name="torso_geom" size="0.05 0.5"')
-        .replace('<body name="thigh" pos="0 0 -0.19999999999999996">', '<body name="thigh" pos="0 0 -0.5">')
+        .replace(
+            'name="torso_geom" size="0.05 0.19999999999999996"', 'name="torso_geom" size="0.05 0.5"'
+        )
+        .replace(
+            '<body name="thigh" pos="0 0 -0.19999999999999996">',
+            '<body name="thigh" pos="0 0 -0.5">',
+        )
         .replace('name="foot_geom" size="0.06 0.195"', 'name="foot_geom" size="0.06 0.39"')
         .replace('pos="0 0 -1.25"', 'pos="0 0 -1.55"')  # root slides stay at the origin
     )
     ref = mujoco.MjModel.from_xml_string(xml)
-    for field in ("body_mass", "body_inertia", "body_pos", "geom_size", "geom_rbound", "qpos0", "jnt_pos"):
-        np.testing.assert_allclose(getattr(ours, field), getattr(ref, field), rtol=1e-12, err_msg=field)
+    for field in (
+        "body_mass",
+        "body_inertia",
+        "body_pos",
+        "geom_size",
+        "geom_rbound",
+        "qpos0",
+        "jnt_pos",
+    ):
+        np.testing.assert_allclose(
+            getattr(ours, field), getattr(ref, field), rtol=1e-12, err_msg=field
+        )
     assert ours.body_mass[ours.body("torso").id] == pytest.approx(8.38, abs=0.01)
 
 
@@ -108,7 +127,15 @@ def test_defaults_compile_to_gymnasiums_model():
     for task in ("hopper", "walker2d", "ant", "humanoid"):
         ours = compile_model(task)
         ref = mujoco.MjModel.from_xml_path(expand_model_path(XML_FILES[task]))
-        for field in ("body_mass", "body_inertia", "body_pos", "geom_size", "geom_rbound", "geom_friction", "dof_damping"):
+        for field in (
+            "body_mass",
+            "body_inertia",
+            "body_pos",
+            "geom_size",
+            "geom_rbound",
+            "geom_friction",
+            "dof_damping",
+        ):
             assert np.array_equal(getattr(ours, field), getattr(ref, field)), (task, field)
         assert ours.opt.density == (1.2 if task in ("ant", "humanoid") else 0.0)
 
@@ -116,7 +143,8 @@ def test_defaults_compile_to_gymnasiums_model():
 def test_generic_parameters():
     base = compile_model("walker2d")
     model = compile_model(
-        "walker2d", {"mass_scale": 1.5, "friction_scale": 0.5, "damping_scale": 3.0, "stiffness": 20.0}
+        "walker2d",
+        {"mass_scale": 1.5, "friction_scale": 0.5, "damping_scale": 3.0, "stiffness": 20.0},
     )
     np.testing.assert_allclose(model.body_mass, 1.5 * base.body_mass, rtol=1e-12)
     np.testing.assert_allclose(model.body_inertia, 1.5 * base.body_inertia, rtol=1e-12)
@@ -128,7 +156,8 @@ def test_generic_parameters():
     hopper = compile_model("hopper", {"stiffness": 55.0})
     legs = [hopper.joint(n).id for n in ("leg_joint", "foot_joint")]
     assert np.all(hopper.jnt_stiffness[legs] == 55.0)
-    assert np.all(hopper.qpos_spring[[hopper.jnt_qposadr[j] for j in legs]] == 2.0)  # RNAC's reference
+    springs = hopper.qpos_spring[[hopper.jnt_qposadr[j] for j in legs]]
+    assert np.all(springs == 2.0)  # RNAC's reference, in rad (the XML's springref is in degrees)
 
 
 def settle(model, steps=300):
@@ -149,7 +178,10 @@ def total_normal_force(model, data):
 def test_gravity_increases_contact_force_of_resting_ant():
     weak, strong = compile_model("ant", {"gravity": 9.81}), compile_model("ant", {"gravity": 19.62})
     mass = weak.body_subtreemass[0]
-    f_weak, f_strong = total_normal_force(weak, settle(weak)), total_normal_force(strong, settle(strong))
+    f_weak, f_strong = (
+        total_normal_force(weak, settle(weak)),
+        total_normal_force(strong, settle(strong)),
+    )
     assert f_weak == pytest.approx(mass * 9.81, rel=0.05)
     assert f_strong == pytest.approx(mass * 19.62, rel=0.05)
     assert f_strong > 1.9 * f_weak

@@ -74,7 +74,9 @@ def test_fixed_and_overrides():
     frozen = parse_dynamics("paper", "hopper").with_overrides(torso_length=0.3)
     assert frozen.params_for_episode(9)["torso_length"] == 0.3
     assert parse_dynamics(frozen.name, "hopper") == frozen
-    assert parse_dynamics("default", "hopper").params_for_episode(0) == dict(get_task("hopper").params)
+    assert parse_dynamics("default", "hopper").params_for_episode(0) == dict(
+        get_task("hopper").params
+    )
 
 
 def test_uniform_within_range_and_seeded():
@@ -104,7 +106,10 @@ def test_same_seed_same_parameter_sequence():
 
 def test_schedule_built_in_code():
     sched = DynamicsSchedule(
-        "walker2d", name="slow", sinusoids={"foot_length": Sinusoid(0.1, 0.02, 0.01)}, constants={"stiffness": 5}
+        "walker2d",
+        name="slow",
+        sinusoids={"foot_length": Sinusoid(0.1, 0.02, 0.01)},
+        constants={"stiffness": 5},
     )
     p = sched.params_for_episode(100)
     assert p["foot_length"] == 0.1 + 0.02 * math.sin(1.0)
@@ -118,7 +123,11 @@ BAD = [
     (lambda: get_task("hoper"), "'hoper'", "hopper, walker2d"),
     (lambda: make("cheetah"), "'cheetah'", "hopper, walker2d, ant, humanoid"),
     (lambda: make("hopper", "papr"), "'papr'", "paper, ompo, nominal"),
-    (lambda: make("hopper", "fixed:torso_lenght=0.5"), "'torso_lenght'", "torso_length, foot_length"),
+    (
+        lambda: make("hopper", "fixed:torso_lenght=0.5"),
+        "'torso_lenght'",
+        "torso_length, foot_length",
+    ),
     (lambda: make("hopper", "paper", gravity=9.81), "'gravity'", "torso_length, foot_length"),
     (lambda: make("ant", "paper", stiffness=10.0), "'stiffness'", "gravity, wind"),
     (lambda: make("hopper", "fixed:torso_length=0"), "0", "a number > 0"),

@@ -22,7 +22,9 @@ def rollout(env, acts):
     out = []
     for a in acts:
         obs, reward, terminated, truncated, info = env.step(a)
-        out.append((obs, reward, terminated, truncated, dict(info["dynamics"]), info["episode_index"]))
+        out.append(
+            (obs, reward, terminated, truncated, dict(info["dynamics"]), info["episode_index"])
+        )
         if terminated or truncated:
             obs, info = env.reset()
             out.append((obs, info["dynamics"], info["episode_index"]))
@@ -48,7 +50,8 @@ def test_spaces_and_info(task):
     assert env.action_space.shape == (spec.act_dim,)
     obs, info = env.reset()
     assert obs.shape == (spec.obs_dim,)
-    assert info["episode_index"] == 0 and info["dynamics"] == parse_dynamics("paper", task).params_for_episode(0)
+    assert info["episode_index"] == 0
+    assert info["dynamics"] == parse_dynamics("paper", task).params_for_episode(0)
     _, _, _, _, info = env.step(env.action_space.sample())
     assert info["episode_index"] == 0 and info["dynamics"] == env.dynamics_params
     assert env.spec.max_episode_steps == 1000
@@ -94,7 +97,9 @@ def test_time_limit():
     assert env.spec.max_episode_steps == 3
 
 
-@pytest.mark.parametrize("task,dynamics", [("hopper", "default"), ("ant", "default"), ("hopper", "fixed")])
+@pytest.mark.parametrize(
+    "task,dynamics", [("hopper", "default"), ("ant", "default"), ("hopper", "fixed")]
+)
 def test_matches_plain_gymnasium(task, dynamics):
     """`default` (and, on Hopper, `fixed` at the defaults: no air) is Gymnasium's env bit for bit."""
     ours = make(task, dynamics, seed=7)
@@ -111,7 +116,12 @@ def test_matches_plain_gymnasium(task, dynamics):
 
 @pytest.mark.parametrize(
     "task,dynamics,warmup",
-    [("hopper", "paper", 30), ("walker2d", "uniform", 25), ("ant", "uniform", 20), ("humanoid", "paper", 15)],
+    [
+        ("hopper", "paper", 30),
+        ("walker2d", "uniform", 25),
+        ("ant", "uniform", 20),
+        ("humanoid", "paper", 15),
+    ],
 )
 def test_state_round_trip_is_bit_exact(task, dynamics, warmup):
     a = make(task, dynamics, seed=3, max_episode_steps=40)  # truncations test the step count too
@@ -119,12 +129,14 @@ def test_state_round_trip_is_bit_exact(task, dynamics, warmup):
     acts = actions(a, warmup + 80, seed=1)
     rollout(a, acts[:warmup])
     state = pickle.loads(pickle.dumps(a.get_state()))
-    b = make(task, dynamics, seed=11, max_episode_steps=40)  # different seed and never reset: the state decides
+    # a different seed, never reset: the state alone decides what follows
+    b = make(task, dynamics, seed=11, max_episode_steps=40)
     b.set_state(copy.deepcopy(state))
     assert b.episode_index == a.episode_index and b.dynamics_params == a.dynamics_params
     after_a, after_b = rollout(a, acts[warmup:]), rollout(b, acts[warmup:])
     assert_identical(after_a, after_b)
-    assert sum(len(t) == 3 for t in after_a) >= 1  # a reset (and recompile) happened after restoring
+    resets = sum(len(t) == 3 for t in after_a)
+    assert resets >= 1  # a reset (and a recompile) happened after restoring
 
 
 def test_state_rejects_other_task():

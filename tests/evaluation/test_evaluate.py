@@ -2,6 +2,7 @@
 the CSV and its sidecar, and NumPy policy files (round trip, export)."""
 
 import json
+import pickle
 
 import numpy as np
 import pandas as pd
@@ -32,11 +33,14 @@ def spec(**kwargs):
 
 
 def test_plan_covers_every_seed_and_grid_point(run):
-    units = evaluate.plan([run], spec(sweeps=["torso_length=0.3:0.5:3"], holds=["foot_length=0.39"]))
+    units = evaluate.plan(
+        [run], spec(sweeps=["torso_length=0.3:0.5:3"], holds=["foot_length=0.39"])
+    )
     assert len(units) == 3 * 2
     assert {u.seed for u in units} == {0, 1} and {u.step for u in units} == {10_000}
     assert units[0].label == "nominal:torso_length=0.3,foot_length=0.39"
     assert dict(units[-1].point) == {"torso_length": 0.5, "foot_length": 0.39}
+    assert pickle.loads(pickle.dumps(units[0])) == units[0]  # what a spawned worker receives
 
 
 @pytest.mark.parametrize(
@@ -65,7 +69,7 @@ def test_same_seed_same_returns_with_one_or_two_workers(run):
     s = spec(sweeps=["torso_length=0.3,0.5"], holds=["foot_length=0.39"])
     (a,) = evaluate.evaluate_runs([run], s, workers=1)
     (b,) = evaluate.evaluate_runs([run], s, workers=1)
-    (c,) = evaluate.evaluate_runs([run], s, workers=2)
+    (c,) = evaluate.evaluate_runs([run], s, workers=2, method="fork")  # spawn: same, slower
     pd.testing.assert_frame_equal(a, b)
     pd.testing.assert_frame_equal(a, c)
     assert len(a) == 2 * 2 * 2  # points × seeds × episodes
@@ -74,7 +78,11 @@ def test_same_seed_same_returns_with_one_or_two_workers(run):
     assert set(a["p_foot_length"]) == {0.39}
     assert (a["length"] <= 25).all() and np.isfinite(a["return"]).all()
     # another evaluation seed gives other initial states, hence (generically) other returns
-    (d,) = evaluate.evaluate_runs([run], spec(sweeps=["torso_length=0.3,0.5"], holds=["foot_length=0.39"], eval_seed=7), workers=1)
+    (d,) = evaluate.evaluate_runs(
+        [run],
+        spec(sweeps=["torso_length=0.3,0.5"], holds=["foot_length=0.39"], eval_seed=7),
+        workers=1,
+    )
     assert not np.allclose(a["return"], d["return"])
 
 
@@ -82,7 +90,9 @@ def test_written_csv_and_sidecar_feed_the_final_score(tmp_path):
     run = load_run(write_run(tmp_path, "r", seeds=(0, 1)))
     s = spec()
     (table,) = evaluate.evaluate_runs([run], s, workers=1)
-    path = evaluate.write_evaluation(table, evaluate.default_output(run, s), s, run, "adarl evaluate r")
+    path = evaluate.write_evaluation(
+        table, evaluate.default_output(run, s), s, run, "adarl evaluate r"
+    )
     assert path == run.path / "evaluations" / "nominal.csv"
     meta = json.loads(path.with_suffix(".json").read_text())
     assert meta["checkpoint_step"] == 10_000 and meta["seeds"] == [0, 1] and meta["sweep"] == {}
@@ -93,7 +103,9 @@ def test_written_csv_and_sidecar_feed_the_final_score(tmp_path):
     path.with_suffix(".json").write_text(json.dumps(meta))
     scores, note = final_scores(run)
     assert note.startswith("`adarl evaluate`") and list(scores["seed"]) == [0, 1]
-    assert scores["score"].to_numpy() == pytest.approx(table.groupby("seed")["return"].mean().to_numpy())
+    assert scores["score"].to_numpy() == pytest.approx(
+        table.groupby("seed")["return"].mean().to_numpy()
+    )
     summary = evaluate.summarise(table)
     assert list(summary.columns) == ["dynamics", "mean", "std", "seeds"]
 

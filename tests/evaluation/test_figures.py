@@ -31,7 +31,7 @@ def labels(ax):
 
 
 def red_dashed(ax):
-    return [l for l in ax.get_lines() if l.get_color() == "red" and l.get_linestyle() == "--"]
+    return [ln for ln in ax.get_lines() if ln.get_color() == "red" and ln.get_linestyle() == "--"]
 
 
 def test_training_curves_have_a_panel_per_task_and_truncation_lines(runs):
@@ -46,7 +46,7 @@ def test_training_curves_have_a_panel_per_task_and_truncation_lines(runs):
     hopper, walker = axes
     assert labels(hopper) == ["adarl", "sac", "truncation"]
     assert labels(walker) == ["sac"]
-    assert [l.get_xdata()[0] for l in red_dashed(hopper)] == [2000, 4000, 6000]
+    assert [ln.get_xdata()[0] for ln in red_dashed(hopper)] == [2000, 4000, 6000]
     assert red_dashed(walker) == []
     assert hopper.get_xlabel() == "environment steps" and "return" in hopper.get_ylabel()
     adarl_line = hopper.get_lines()[0]
@@ -56,13 +56,15 @@ def test_training_curves_have_a_panel_per_task_and_truncation_lines(runs):
 
 def test_rank_trajectories_per_layer_and_seed_with_the_intrinsic_rank(runs):
     r = runs["adarl"]
-    fig = figures.rank_trajectories(collect.rank_history(r), 7, "hopper adarl", collect.truncation_steps(r))
+    fig = figures.rank_trajectories(
+        collect.rank_history(r), 7, "hopper adarl", collect.truncation_steps(r)
+    )
     assert [ax.get_title() for ax in fig.axes] == [
         "hopper adarl: actor_1", "hopper adarl: q1_1", "hopper adarl: q2_1",
     ]  # fmt: skip
     ax = fig.axes[0]
     assert labels(ax) == ["seed 0", "seed 1", "seed 2", "$2d_a+1$ = 7", "truncation"]
-    intrinsic = [l for l in ax.get_lines() if l.get_label() == "$2d_a+1$ = 7"][0]
+    intrinsic = [ln for ln in ax.get_lines() if ln.get_label() == "$2d_a+1$ = 7"][0]
     assert list(intrinsic.get_ydata()) == [7, 7]
     assert ax.get_yscale() == "log" and len(red_dashed(ax)) == 3
     ranks = ax.get_lines()[0].get_ydata()
@@ -74,7 +76,9 @@ def test_robustness_curve_one_line_per_method_over_the_swept_values(runs):
     for name in ("adarl", "sac"):
         (ev,) = [e for e in collect.evaluations(runs[name]) if e.swept]
         per_seed = ev.table.groupby(["seed", "p_torso_length"], as_index=False)["return"].mean()
-        frames.append(per_seed.rename(columns={"p_torso_length": "value"}).assign(method=runs[name].label))
+        frames.append(
+            per_seed.rename(columns={"p_torso_length": "value"}).assign(method=runs[name].label)
+        )
     data = pd.concat(frames)
     fig = figures.robustness_curve(data, "torso_length", "hopper: torso_length", nominal=0.4)
     (ax,) = fig.axes
@@ -87,9 +91,7 @@ def test_robustness_curve_one_line_per_method_over_the_swept_values(runs):
 
 
 def test_bias_variance_marks_adarls_converged_rank(runs):
-    frames = [
-        collect.final_scores(runs[f"fixed{k}"])[0].assign(rank=k) for k in (2, 8, 32)
-    ]
+    frames = [collect.final_scores(runs[f"fixed{k}"])[0].assign(rank=k) for k in (2, 8, 32)]
     fig = figures.bias_variance(pd.concat(frames), [12, 14, 13], [900.0, 950.0, 1000.0], 7)
     (ax,) = fig.axes
     assert ax.get_xscale() == "log" and ax.get_xlabel() == "rank of the bottleneck"
@@ -97,7 +99,7 @@ def test_bias_variance_marks_adarls_converged_rank(runs):
     assert "AdaRL converged rank (13)" in names and "AdaRL" in names and "$2d_a+1$ = 7" in names
     assert len(ax.containers) == 1  # the fixed-rank error bars
     assert list(ax.containers[0].lines[0].get_xdata()) == [2, 8, 32]
-    star = [l for l in ax.get_lines() if l.get_label() == "AdaRL"][0]
+    star = [ln for ln in ax.get_lines() if ln.get_label() == "AdaRL"][0]
     assert (star.get_xdata()[0], star.get_ydata()[0]) == (13, 950)
 
 

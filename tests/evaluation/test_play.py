@@ -53,3 +53,21 @@ def test_play_renders_a_video(tmp_path, backend, suffix):
     assert frames.shape[0] >= 2 and frames.shape[1:3] == (48, 64)
     assert frames.std() > 0  # not a blank image
     assert [p.name for p in Path(tmp_path).iterdir() if p.name.startswith(".")] == []
+
+
+def test_play_bad_input_exits_2(tmp_path, monkeypatch, capsys):
+    from adarl.cli.main import main
+
+    # `adarl play` sets these for MuJoCo; monkeypatch restores them afterwards
+    monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+    run = write_run(tmp_path, "r", seeds=(0,))
+    assert main(["play", str(run), "--video", str(tmp_path / "x.avi")]) == 2
+    assert "unsupported format" in capsys.readouterr().err
+    assert main(["play", str(run), "--seed", "3", "--video", str(tmp_path / "x.gif")]) == 2
+    assert "has no seed 3" in capsys.readouterr().err
+    assert (
+        main(["play", str(run), "--dynamics", "sideways", "--video", str(tmp_path / "x.gif")]) == 2
+    )
+    assert "unknown dynamics" in capsys.readouterr().err
+    assert not (tmp_path / "x.gif").exists()

@@ -43,7 +43,10 @@ def test_probability_of_improvement_by_hand():
 
 def test_probability_of_improvement_equals_rliable():
     rng = np.random.default_rng(1)
-    x, y = rng.integers(0, 4, size=(5, 3)).astype(float), rng.integers(0, 4, size=(6, 3)).astype(float)
+    x, y = (
+        rng.integers(0, 4, size=(5, 3)).astype(float),
+        rng.integers(0, 4, size=(6, 3)).astype(float),
+    )
     assert stats.probability_of_improvement(x, y) == pytest.approx(
         metrics.probability_of_improvement(x, y)
     )

@@ -52,7 +52,8 @@ def test_latex_and_csv(scores):
 
 def test_missing_cells_are_dashes():
     scores = pd.DataFrame(
-        [("hopper", "adarl", 0, 1.0), ("ant", "sac", 0, 2.0)], columns=["task", "method", "seed", "score"]
+        [("hopper", "adarl", 0, 1.0), ("ant", "sac", 0, 2.0)],
+        columns=["task", "method", "seed", "score"],
     )
     md = tables.table_markdown(tables.score_table(scores))
     assert "| hopper | **1.0** | — |" in md and "| ant | — | **2.0** |" in md

@@ -1,0 +1,193 @@
+"""Where units run. Both backends run the same job, `run_job`: one `adarl.sweeps.worker`
+subprocess with its output appended to the unit's log, and both hand back a
+`concurrent.futures.Future` per job, so the sweep's loop (adarl.sweeps.runner) does not care which
+one it talks to.
+
+* `LocalBackend`: a pool of `workers` slots on this machine. The slots are threads, each waiting
+  on its unit's training subprocess: the subprocesses are the workers that use the cores.
+* `RayBackend`: each job is a Ray task declaring `cpus_per_unit` CPUs, on a local Ray instance
+  it starts (sized to `workers`) or on the cluster at `address`. Run folders are written by the
+  node that trains them, so on a cluster the sweep folder must be on a shared filesystem.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+from adarl.errors import UsageError
+
+RAY_INSTALL = "pip install 'adarl[ray]'"
+
+
+# ----------------------------------------------------------------------------- the job
+def thread_env(cpus: int, cache_dir: Path | None = None) -> dict[str, str]:
+    """Environment for a unit's process: XLA, OpenMP and BLAS limited to `cpus` threads so that
+    concurrent units do not fight over cores; JAX's compilation cache in `cache_dir` (unless the
+    caller's environment already names one) so resumed and retried units skip recompiling."""
+    kept = [f for f in os.environ.get("XLA_FLAGS", "").split()
+            if not f.lstrip("-").startswith(("xla_cpu_multi_thread_eigen",
+                                              "intra_op_parallelism_threads"))]
+    if cpus == 1:
+        kept += ["--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1"]
+    else:
+        kept += [f"intra_op_parallelism_threads={cpus}"]
+    env = {"XLA_FLAGS": " ".join(kept)}
+    for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        env[name] = str(cpus)
+    if cache_dir is not None and "JAX_COMPILATION_CACHE_DIR" not in os.environ:
+        env["JAX_COMPILATION_CACHE_DIR"] = str(cache_dir)
+        env.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+    return env
+
+
+_children: set[subprocess.Popen] = set()
+_children_lock = threading.Lock()
+
+
+def run_job(job: dict) -> dict:
+    """Run one attempt of one unit and wait for it. `job`: `worker_args` (after
+    `python -m adarl.sweeps.worker`), `log` (appended to) and `env` (added to this process's).
+    Returns the exit status (negative: killed by that signal) and the host."""
+    log = Path(job["log"])
+    log.parent.mkdir(parents=True, exist_ok=True)
+    command = [sys.executable, "-m", "adarl.sweeps.worker", "--parent", str(os.getpid()),
+               *job["worker_args"]]
+    with open(log, "ab") as out:
+        proc = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, env={**os.environ, **job["env"]},
+                                start_new_session=True)  # Ctrl-C reaches the sweep, not units
+        with _children_lock:
+            _children.add(proc)
+        try:
+            returncode = proc.wait()
+        finally:
+            with _children_lock:
+                _children.discard(proc)
+    return {"returncode": returncode, "host": socket.gethostname()}
+
+
+def stop_children(grace_s: float = 10.0) -> None:
+    """SIGTERM every unit process this process started, then SIGKILL what is left."""
+    with _children_lock:
+        procs = list(_children)
+    for proc in procs:
+        _signal(proc, signal.SIGTERM)
+    for proc in procs:
+        try:
+            proc.wait(timeout=grace_s)
+        except subprocess.TimeoutExpired:
+            _signal(proc, signal.SIGKILL)
+            proc.wait()
+
+
+def _signal(proc: subprocess.Popen, sig: int) -> None:
+    try:
+        proc.send_signal(sig)
+    except ProcessLookupError:
+        pass
+
+
+# ----------------------------------------------------------------------------- backends
+def default_workers(cpus_per_unit: int = 1) -> int:
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, (cores or 1) // cpus_per_unit)
+
+
+class LocalBackend:
+    name = "local"
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.where = f"{workers} local worker{'s' * (workers != 1)}"
+        self._pool = cf.ThreadPoolExecutor(max_workers=workers, thread_name_prefix="unit")
+
+    def submit(self, job: dict) -> cf.Future:
+        return self._pool.submit(run_job, job)
+
+    def close(self, interrupted: bool = False) -> None:
+        if interrupted:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            stop_children()
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+class RayBackend:
+    name = "ray"
+
+    def __init__(self, address: str | None, workers: int, cpus_per_unit: int):
+        ray = import_ray()
+        if address:
+            check_reachable(address)
+        try:
+            if address:
+                ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            else:
+                ray.init(num_cpus=workers * cpus_per_unit, include_dashboard=False,
+                         log_to_driver=False)
+        except (ConnectionError, OSError, RuntimeError, ValueError) as exc:
+            ray.shutdown()
+            message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            where = f"the Ray cluster at {address}" if address else "a local Ray instance"
+            raise UsageError(f"cannot start or reach {where}: {message}") from None
+        self._ray = ray
+        self._remote = ray.remote(num_cpus=cpus_per_unit, max_retries=0)(run_job)
+        self._refs: dict[cf.Future, object] = {}
+        cpus = int(ray.cluster_resources().get("CPU", 0))
+        self.where = (f"Ray cluster at {address} ({cpus} CPUs)" if address
+                      else f"local Ray instance ({cpus} CPUs)")
+
+    def submit(self, job: dict) -> cf.Future:
+        ref = self._remote.remote(job)
+        future = ref.future()
+        self._refs[future] = ref
+        return future
+
+    def close(self, interrupted: bool = False) -> None:
+        if interrupted:
+            for future, ref in self._refs.items():
+                if not future.done():
+                    self._ray.cancel(ref, force=True)
+        self._refs.clear()
+        self._ray.shutdown()  # stops the local instance it started; only disconnects otherwise
+
+
+def import_ray():
+    try:
+        import ray
+    except ImportError:
+        raise UsageError(f"--backend ray needs Ray, which is not installed; install it with: "
+                         f"{RAY_INSTALL}") from None
+    return ray
+
+
+def check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """A one-line UsageError unless something listens at a Ray address (`auto` is left to
+    Ray, which fails fast when it finds no cluster)."""
+    if address == "auto":
+        return
+    hostport = address.split("://", 1)[-1]
+    host, _, port = hostport.rpartition(":")
+    if not host or not port.isdigit():
+        raise UsageError(f"Ray address {address!r} is not HOST:PORT, ray://HOST:PORT or auto")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise UsageError(f"cannot reach the Ray cluster at {address}: {reason}") from None
+
+
+def make_backend(kind: str, address: str | None, workers: int | None, cpus_per_unit: int):
+    """A started backend; a one-line UsageError (nothing started) if it cannot start."""
+    if kind == "local":
+        if address:
+            raise UsageError("--address is for --backend ray")
+        return LocalBackend(workers or default_workers(cpus_per_unit))
+    return RayBackend(address, workers or default_workers(cpus_per_unit), cpus_per_unit)

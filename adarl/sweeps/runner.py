@@ -1,0 +1,333 @@
+"""Run a sweep: hand every unfinished unit to a backend, retry crashed ones a bounded number of
+times, keep the manifest and print one line per unit event, then a summary.
+
+The sweep folder:
+
+    SWEEP_DIR/
+      manifest.json                 state of every unit (adarl.sweeps.manifest)
+      <task>/<label>/seeds-<s>/     one run folder per unit (docs/run-format.md)
+      logs/<task>__<label>__seeds-<s>.log   output of every attempt of that unit
+      .state/                       lock files and "attempt started" markers
+      .jax-cache/                   JAX's compilation cache shared by the units
+
+Re-running the same command is how a sweep resumes: units whose run folder has DONE are skipped,
+the others are queued again and each attempt resumes from its run's newest checkpoint
+(adarl.sweeps.worker decides that, under the unit's lock).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import fcntl
+import json
+import os
+import signal
+import time
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+from adarl.errors import UsageError
+from adarl.sweeps import manifest as manifest_mod
+from adarl.sweeps.backends import thread_env
+from adarl.sweeps.spec import Sweep, Unit
+from adarl.sweeps.worker import EXIT_BUSY
+
+POLL_S = 1.0  # how often the loop looks for finished and started units
+NOT_RETRIED = {2: "bad input", EXIT_BUSY: "another process is training this unit"}
+
+
+@dataclass
+class Options:
+    max_retries: int = 2  # further attempts per unit after a crash, in one invocation
+    progress_every: float = 60.0  # seconds between progress lines of running units
+    command: str = ""
+
+
+def echo(line: str) -> None:
+    print(line, flush=True)
+
+
+# ----------------------------------------------------------------------------- plan
+def unit_state(out: Path, unit: Unit) -> str:
+    """What running `unit` would do now: 'done', 'resume from step N' or 'start'."""
+    from adarl.train.io import checkpoint_dirs
+
+    run_dir = out / unit.id
+    if (run_dir / "DONE").exists():
+        return "done"
+    found = checkpoint_dirs(run_dir)
+    return f"resume from step {int(found[-1].name.split('_')[1]):,}" if found else "start"
+
+
+def plan_text(sweep: Sweep, out: Path, where: str) -> str:
+    """The dry run: every unit, what it trains and what running it now would do."""
+    width = max(len(u.id) for u in sweep.units)
+    lines = [f"sweep {sweep.name} ({sweep.source}): {len(sweep.units)} units on {where}, "
+             f"output {out}"]
+    for unit in sweep.units:
+        lines.append(f"  {unit.id:<{width}}  {unit_state(out, unit):<22} "
+                     f"adarl train {' '.join(unit.train_args)}")
+    steps = sum(u.total_steps * len(u.seeds) for u in sweep.units)
+    lines.append(f"total: {steps:,} environment steps over all seeds")
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- run
+@contextlib.contextmanager
+def sweep_lock(out: Path):
+    """Hold `out/.state/sweep.lock`; a UsageError if another sweep process holds it."""
+    path = out / ".state" / "sweep.lock"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            pid = handle.read().strip() or "?"
+            raise UsageError(f"{out} is in use by another adarl sweep (pid {pid})") from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        yield
+
+
+def run_sweep(sweep: Sweep, out: Path, backend, options: Options) -> int:
+    """Run every unfinished unit of `sweep` into `out`; 0 if all are done, 1 if any failed."""
+    out = Path(out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    with sweep_lock(out):
+        manifest = manifest_mod.Manifest.open(out, sweep, options.command)
+        return SweepRun(sweep, out, backend, manifest, options).run()
+
+
+class SweepRun:
+    def __init__(self, sweep: Sweep, out: Path, backend, manifest, options: Options):
+        self.sweep, self.out, self.backend = sweep, out, backend
+        self.manifest, self.options = manifest, options
+        self.env = thread_env(sweep.cpus_per_unit, out / ".jax-cache")
+        self.width = max(len(u.id) for u in sweep.units)
+        self.in_flight: dict[cf.Future, tuple[Unit, int]] = {}
+        self.tries: Counter[str] = Counter()
+        self.skipped = 0
+
+    # ------------------------------------------------------------------ loop
+    def run(self) -> int:
+        start = time.monotonic()
+        echo(f"sweep {self.sweep.name}: {len(self.sweep.units)} units on {self.backend.where}, "
+             f"output {self.out}")
+        for unit in self.sweep.units:
+            state = unit_state(self.out, unit)
+            if state == "done":
+                self.skipped += 1
+                self.manifest.update(unit.id, status="done")
+                self.line(unit, "done", "(finished before; skipped)")
+            else:
+                self.manifest.update(unit.id, status="queued", error=None)
+                self.line(unit, "queued", f"({state})")
+        for unit in self.sweep.units:
+            if self.manifest.unit(unit.id)["status"] == "queued":
+                self.submit(unit)
+        self.manifest.save()
+        last_progress = time.monotonic()
+        try:
+            while self.in_flight:
+                finished, _ = cf.wait(list(self.in_flight), timeout=POLL_S,
+                                      return_when=cf.FIRST_COMPLETED)
+                self.notice_started()
+                for future in finished:
+                    self.finish(future)
+                if time.monotonic() - last_progress >= self.options.progress_every:
+                    self.progress_lines()
+                    last_progress = time.monotonic()
+                self.manifest.save()
+        except BaseException as exc:  # Ctrl-C (or a bug): stop the units, record where they were
+            self.backend.close(interrupted=True)
+            for unit, _ in self.in_flight.values():
+                self.manifest.update(unit.id, status="queued", error="interrupted", pid=None)
+            self.manifest.save()
+            if isinstance(exc, KeyboardInterrupt):
+                echo("sweep interrupted; run the same command again to resume it")
+            raise
+        return self.summary(time.monotonic() - start)
+
+    def submit(self, unit: Unit) -> None:
+        record = self.manifest.unit(unit.id)
+        attempt = int(record.get("attempts", 0)) + 1
+        self.tries[unit.id] += 1
+        self.manifest.update(unit.id, status="queued", attempts=attempt)
+        self.in_flight[self.backend.submit(self.job(unit, attempt))] = (unit, attempt)
+
+    def job(self, unit: Unit, attempt: int) -> dict:
+        return {
+            "worker_args": [
+                "--run-dir", str(self.out / unit.id),
+                "--lock", str(self.state_file(unit, "lock")),
+                "--marker", str(self.state_file(unit, "started.json")),
+                "--attempt", str(attempt), "--", *unit.train_args,
+            ],
+            "log": str(self.out / "logs" / f"{unit.flat_id}.log"),
+            "env": self.env,
+        }
+
+    def state_file(self, unit: Unit, suffix: str) -> Path:
+        return self.out / ".state" / f"{unit.flat_id}.{suffix}"
+
+    # ------------------------------------------------------------------ events
+    def notice_started(self) -> None:
+        """Mark in-flight units whose worker has written this attempt's marker as running."""
+        for unit, attempt in list(self.in_flight.values()):
+            record = self.manifest.unit(unit.id)
+            if record["status"] != "queued":
+                continue
+            marker = _read_json(self.state_file(unit, "started.json"))
+            if not marker or marker.get("attempt") != attempt:
+                continue
+            self.manifest.update(unit.id, status="running", pid=marker.get("pid"),
+                                 host=marker.get("host"), step=marker.get("step", 0),
+                                 started=marker.get("time"))
+            how = {"fresh": "from scratch", "done": "already done",
+                   "resume": f"resuming from step {marker.get('step', 0):,}"}.get(marker["mode"])
+            self.line(unit, "running",
+                      f"attempt {attempt}, {how}, on {marker.get('host')} pid {marker.get('pid')}")
+
+    def finish(self, future: cf.Future) -> None:
+        unit, attempt = self.in_flight.pop(future)
+        try:
+            returncode, error = future.result()["returncode"], None
+        except Exception as exc:  # a Ray worker that died, or a job that could not start
+            returncode, error = None, _one_line(f"{type(exc).__name__}: {exc}")
+        if error is None and returncode != 0:
+            error = exit_text(returncode)
+        done = (self.out / unit.id / "DONE").exists()
+        if returncode == 0 and not done:
+            error = "exited without finishing (no DONE)"
+        elapsed = self._elapsed(unit)
+        if error is None:
+            self.manifest.update(unit.id, status="done", returncode=0, error=None, pid=None,
+                                 step=unit.total_steps, finished=time.time())
+            self.line(unit, "done", f"attempt {attempt}{elapsed}")
+            return
+        last = _last_line(self.out / "logs" / f"{unit.flat_id}.log")
+        detail = f"{error}{f': {last}' if last else ''}"
+        self.manifest.update(unit.id, returncode=returncode, error=detail, pid=None)
+        reason = NOT_RETRIED.get(returncode)
+        if reason is None and self.tries[unit.id] <= self.options.max_retries:
+            left = self.options.max_retries + 1 - self.tries[unit.id]
+            self.line(unit, "failed", f"attempt {attempt}: {detail}; retrying ({left} "
+                                      f"attempt{'s' * (left != 1)} left)")
+            self.submit(unit)
+        else:
+            self.manifest.update(unit.id, status="failed", finished=time.time())
+            why = f" ({reason}, not retried)" if reason else ""
+            self.line(unit, "failed", f"attempt {attempt}{why}: {detail}; log "
+                                      f"{self.out / 'logs' / (unit.flat_id + '.log')}")
+
+    def progress_lines(self) -> None:
+        for unit, _ in self.in_flight.values():
+            if self.manifest.unit(unit.id)["status"] != "running":
+                continue
+            found = last_train_row(self.out / unit.id / "train.csv")
+            if found is None:
+                self.line(unit, "running", "starting (compiling, filling the buffer)")
+                continue
+            step, rate = found
+            self.manifest.update(unit.id, step=step, steps_per_s=rate)
+            left = (unit.total_steps - step) / rate if rate > 0 else None
+            eta = f", eta {_duration(left)}" if left is not None else ""
+            self.line(unit, "running", f"step {step:,}/{unit.total_steps:,} "
+                                       f"({100 * step / unit.total_steps:.0f}%), "
+                                       f"{rate:,.0f} steps/s{eta}")
+
+    def line(self, unit: Unit, status: str, detail: str) -> None:
+        echo(f"{time.strftime('%H:%M:%S')} {unit.id:<{self.width}}  {status:<7}  {detail}")
+
+    def summary(self, seconds: float) -> int:
+        units = self.manifest.data["units"]
+        ids = [u.id for u in self.sweep.units]
+        done = [i for i in ids if units[i]["status"] == "done"]
+        failed = [i for i in ids if units[i]["status"] == "failed"]
+        echo(f"sweep {self.sweep.name}: {len(ids)} units, {len(done)} done "
+             f"({self.skipped} before this run), {len(failed)} failed, in {_duration(seconds)}")
+        for uid in failed:
+            record = units[uid]
+            echo(f"  failed: {uid} after {record['attempts']} attempt"
+                 f"{'s' * (record['attempts'] != 1)}: {record.get('error')}")
+        if failed:
+            echo("re-run the same command to retry the failed units (finished ones are kept)")
+        echo(f"manifest: {self.manifest.path}")
+        echo(f"report:   adarl report {self.out} --out {self.out / 'report'}")
+        return 1 if failed else 0
+
+    def _elapsed(self, unit: Unit) -> str:
+        started = self.manifest.unit(unit.id).get("started")
+        return f" in {_duration(time.time() - started)}" if started else ""
+
+
+# ----------------------------------------------------------------------------- helpers
+def last_train_row(path: Path) -> tuple[int, float] | None:
+    """(step, steps_per_s) of the last complete row of a run's train.csv, if it has one."""
+    try:
+        with open(path, "rb") as f:
+            header = f.readline().decode().strip().split(",")
+            f.seek(0, os.SEEK_END)
+            size = f.tell()
+            f.seek(max(0, size - 4096))
+            tail = f.read().decode(errors="replace")
+    except OSError:
+        return None
+    rows = [r for r in tail.split("\n")[:-1] if r and not r.startswith("step,")]
+    if not rows or "step" not in header or "steps_per_s" not in header:
+        return None
+    cells = rows[-1].split(",")
+    try:
+        return (int(float(cells[header.index("step")])),
+                float(cells[header.index("steps_per_s")]))
+    except (IndexError, ValueError):
+        return None
+
+
+def exit_text(returncode: int | None) -> str:
+    if returncode is not None and returncode < 0:
+        try:
+            return f"killed by {signal.Signals(-returncode).name}"
+        except ValueError:
+            return f"killed by signal {-returncode}"
+    return f"exit {returncode}"
+
+
+def _read_json(path: Path):
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def _last_line(path: Path) -> str:
+    """The last non-empty line of a log, shortened (the error message of a failed attempt)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            f.seek(max(0, f.tell() - 2048))
+            lines = [s.strip() for s in f.read().decode(errors="replace").splitlines()]
+    except OSError:
+        return ""
+    lines = [s for s in lines if s and not s.startswith("===")]
+    return _one_line(lines[-1]) if lines else ""
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _duration(seconds: float) -> str:
+    seconds = int(max(0, seconds))
+    hours, rest = divmod(seconds, 3600)
+    minutes, secs = divmod(rest, 60)
+    if hours:
+        return f"{hours}h{minutes:02d}m"
+    return f"{minutes}m{secs:02d}s" if minutes else f"{secs}s"
+

@@ -1,0 +1,402 @@
+"""Sweep files: parse a YAML spec (or a shipped preset), check everything, expand it into units.
+
+A unit is one task × one algorithm entry × one group of seeds: exactly one `adarl train` run,
+whose seeds are vmapped together in one process. Each unit carries the `adarl train` flags that
+start it, already checked by the trainer's own config builder, so a bad spec fails here, with a
+one-line `UsageError`, before anything starts. The format is documented in docs/sweeps.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from adarl.errors import UsageError, check_choice
+
+PRESET_DIR = Path(__file__).parent / "presets"
+
+TOP_KEYS = ("name", "description", "tasks", "algos", "seeds", "seeds_per_unit", "budget",
+            "dynamics", "preset", "evaluation", "overrides", "cpus_per_unit")
+REQUIRED_KEYS = ("tasks", "algos", "seeds", "budget")
+EVAL_KEYS = ("eval_every", "eval_episodes", "eval_dynamics")
+ENTRY_KEYS = ("algo", "name", "preset", "grid")
+# set by the spec's own keys (tasks, seeds, budget), never by overrides
+RESERVED_FIELDS = {"algo": "algos", "task": "tasks", "seeds": "seeds", "total_steps": "budget"}
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One run of the sweep: `adarl train *train_args --out <sweep>/<id>`."""
+
+    id: str  # "<task>/<label>/seeds-<...>", also the run folder relative to the sweep folder
+    task: str
+    algo: str
+    label: str
+    seeds: tuple[int, ...]
+    total_steps: int
+    train_args: tuple[str, ...]
+
+    @property
+    def flat_id(self) -> str:
+        """The id as one file name (for logs and lock files)."""
+        return self.id.replace("/", "__")
+
+
+@dataclass(frozen=True)
+class Sweep:
+    name: str
+    source: str  # the preset name or the file path it came from
+    units: tuple[Unit, ...]
+    cpus_per_unit: int = 1
+
+
+# ----------------------------------------------------------------------------- loading
+def list_presets() -> list[str]:
+    return sorted(p.stem for p in PRESET_DIR.glob("*.yaml"))
+
+
+def resolve(spec: str) -> Path:
+    """A path to an existing file, else the shipped preset of that name."""
+    path = Path(spec)
+    if path.is_file():
+        return path
+    preset = PRESET_DIR / f"{spec}.yaml"
+    if "/" not in spec and preset.is_file():
+        return preset
+    raise UsageError(
+        f"no sweep file or preset named {spec!r}; presets: {', '.join(list_presets())}")
+
+
+def load(spec: str) -> Sweep:
+    """Read, check and expand a sweep file or preset name; a one-line UsageError on bad input."""
+    path = resolve(spec)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or type(exc).__name__
+        raise UsageError(f"{path} is not valid YAML{where}: {problem}") from None
+    except OSError as exc:
+        raise UsageError(f"cannot read {path}: {exc.strerror}") from None
+    source = spec if path.parent == PRESET_DIR and not Path(spec).is_file() else str(path)
+    return parse(doc, source=source, default_name=path.stem)
+
+
+# ----------------------------------------------------------------------------- parsing
+def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
+    """Check a spec already read from YAML and expand it into units."""
+    from adarl import envs
+    from adarl.algos import ALGOS
+
+    where = source
+    if not isinstance(doc, dict):
+        raise UsageError(f"{where}: a sweep file is a mapping of keys ({', '.join(TOP_KEYS)})")
+    _check_keys(doc, TOP_KEYS, f"{where}")
+    for key in REQUIRED_KEYS:
+        if key not in doc:
+            raise UsageError(f"{where}: missing key {key!r} (required: {', '.join(REQUIRED_KEYS)})")
+    fields = _family_fields()
+    all_fields = set().union(*fields.values())
+
+    name = _name(doc.get("name", default_name), f"{where}: name")
+    tasks = _tasks(doc["tasks"], where, all_fields)
+    seeds = _seeds(doc["seeds"], where)
+    group = doc.get("seeds_per_unit", len(seeds))
+    if not _is_int(group) or group < 1:
+        raise UsageError(f"{where}: seeds_per_unit must be an integer ≥ 1, got {group!r}")
+    cpus = doc.get("cpus_per_unit", 1)
+    if not _is_int(cpus) or cpus < 1:
+        raise UsageError(f"{where}: cpus_per_unit must be an integer ≥ 1, got {cpus!r}")
+    budget = _budget(doc["budget"], tasks, where)
+    base: dict = {}
+    if doc.get("dynamics") is not None:
+        base["dynamics"] = _string(doc["dynamics"], f"{where}: dynamics")
+    evaluation = doc.get("evaluation") or {}
+    if not isinstance(evaluation, dict):
+        raise UsageError(f"{where}: evaluation must be a mapping of {', '.join(EVAL_KEYS)}")
+    _check_keys(evaluation, EVAL_KEYS, f"{where}: evaluation")
+    base.update(evaluation)
+    overrides = _overrides(doc.get("overrides"), f"{where}: overrides", all_fields)
+    preset = doc.get("preset")
+    if preset is not None:
+        preset = _string(preset, f"{where}: preset")
+    entries = _algo_entries(doc["algos"], where, fields, ALGOS)
+
+    groups = [tuple(seeds[i:i + group]) for i in range(0, len(seeds), group)]
+    units = []
+    for task, task_overrides in tasks.items():
+        for entry in entries:
+            family_fields = fields[_family(entry["algo"])]
+            values = dict(base)
+            values.update({k: v for k, v in overrides.items() if k in family_fields})
+            values.update({k: v for k, v in task_overrides.items() if k in family_fields})
+            values.update(entry["fields"])
+            for seed_group in groups:
+                units.append(_unit(task, entry, seed_group, budget[task],
+                                   entry["preset"] or preset, values, where, envs))
+    return Sweep(name=name, source=source, units=tuple(units), cpus_per_unit=int(cpus))
+
+
+def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
+    label, algo = entry["label"], entry["algo"]
+    uid = f"{task}/{label}/seeds-{_seed_text(seeds)}"
+    args = ["--algo", algo]
+    if preset:
+        args += ["--preset", preset]
+    args += ["--task", task, "--seeds", ",".join(map(str, seeds)),
+             "--total-steps", str(total_steps)]
+    for name, value in values.items():
+        if name == "eval_dynamics" and isinstance(value, list) and any("," in str(v) for v in value):
+            raise UsageError(f"{where}: {uid}: an eval_dynamics item with a comma cannot be "
+                             f"passed to adarl train --eval-dynamics; got {value!r}")
+        args += [f"--{name.replace('_', '-')}", _flag_text(value)]
+    try:
+        config = build_config(args)
+        envs.parse_dynamics(config.dynamics, task)
+        for spec in config.eval_dynamics:
+            envs.parse_dynamics(spec, task)
+    except UsageError as exc:
+        raise UsageError(f"{where}: {uid}: {exc}") from None
+    return Unit(id=uid, task=task, algo=algo, label=label, seeds=tuple(seeds),
+                total_steps=int(total_steps), train_args=tuple(args))
+
+
+def build_config(train_args: list[str]):
+    """The config `adarl train *train_args` would train (raises the trainer's UsageError)."""
+    from adarl.cli import train
+
+    parser = _RaisingParser(prog="adarl train", add_help=False)
+    train.add_arguments(parser)
+    return train.build_config(parser.parse_args(train_args))[1]
+
+
+class _RaisingParser(argparse.ArgumentParser):
+    def error(self, message):  # noqa: D102
+        raise UsageError(message)
+
+
+# ----------------------------------------------------------------------------- pieces
+def _family(algo: str) -> str:
+    return "rnac" if algo == "rnac" else "sac"
+
+
+def _family_fields() -> dict[str, set[str]]:
+    from adarl.cli.train import _config_classes
+
+    return {family: {f.name for f in dataclasses.fields(cls)}
+            for family, cls in _config_classes().items()}
+
+
+def _check_keys(mapping: dict, allowed, where: str) -> None:
+    for key in mapping:
+        if key not in allowed:
+            raise UsageError(f"{where}: unknown key {key!r}; allowed: {', '.join(allowed)}")
+
+
+def _tasks(value, where: str, all_fields: set[str]) -> dict[str, dict]:
+    from adarl.envs import get_task
+
+    if isinstance(value, str):
+        value = [value]
+    if isinstance(value, list):
+        twice = [t for t in value if value.count(t) > 1]
+        if twice:
+            raise UsageError(f"{where}: task {twice[0]!r} is listed twice")
+        value = dict.fromkeys(value)
+    if not isinstance(value, dict):
+        raise UsageError(f"{where}: tasks must be a list of task names or a mapping "
+                         f"task -> overrides, got {value!r}")
+    if not value:
+        raise UsageError(f"{where}: tasks is empty, so the sweep has nothing to run")
+    tasks = {}
+    for task, overrides in value.items():
+        name = get_task(str(task)).name
+        tasks[name] = _overrides(overrides, f"{where}: tasks: {name}", all_fields)
+    return tasks
+
+
+def _overrides(value, where: str, allowed: set[str]) -> dict:
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise UsageError(f"{where} must be a mapping of config fields to values, got {value!r}")
+    for key in value:
+        _check_field(key, allowed, where)
+    return dict(value)
+
+
+def _check_field(key, allowed: set[str], where: str, algo: str | None = None) -> None:
+    if key in RESERVED_FIELDS:
+        raise UsageError(f"{where}: {key!r} is set by the spec's {RESERVED_FIELDS[key]!r} key")
+    if key not in allowed:
+        what = f"a config field of {algo}" if algo else "a config field of any algorithm"
+        raise UsageError(f"{where}: unknown key {key!r}; it is not {what} "
+                         f"(see adarl train --help)")
+
+
+def _seeds(value, where: str) -> tuple[int, ...]:
+    from adarl.cli.train import parse_int_list
+
+    if _is_int(value):
+        value = [value]
+    if isinstance(value, str):
+        try:
+            value = list(parse_int_list(value))
+        except ValueError:
+            raise UsageError(f"{where}: seeds {value!r} are not a list like 0-4 or 0,2,5") from None
+    if not isinstance(value, list) or not all(_is_int(s) and s >= 0 for s in value):
+        raise UsageError(f"{where}: seeds must be integers ≥ 0 (a list, or text like 0-4), "
+                         f"got {value!r}")
+    if not value:
+        raise UsageError(f"{where}: seeds is empty, so the sweep has nothing to run")
+    if len(set(value)) != len(value):
+        raise UsageError(f"{where}: seeds contain duplicates: {value}")
+    return tuple(value)
+
+
+def _budget(value, tasks: dict, where: str) -> dict[str, int]:
+    if not isinstance(value, dict):
+        value = {task: value for task in tasks}
+    extra = [t for t in value if t not in tasks]
+    if extra:
+        raise UsageError(f"{where}: budget names task {extra[0]!r}, which is not in tasks "
+                         f"({', '.join(tasks)})")
+    budget = {}
+    for task in tasks:
+        if task not in value:
+            raise UsageError(f"{where}: budget has no entry for task {task!r}")
+        steps = _steps(value[task])
+        if steps is None or steps <= 0:
+            raise UsageError(f"{where}: budget for {task} must be a number of steps > 0, "
+                             f"got {value[task]!r}")
+        budget[task] = steps
+    return budget
+
+
+def _steps(value) -> int | None:
+    """An integral number of steps: 150000, 150_000, 1.5e5 or '1.5e5'; else None."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, str):
+        try:
+            value = float(value.replace("_", ""))
+        except ValueError:
+            return None
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    return value if isinstance(value, int) else None
+
+
+def _algo_entries(value, where: str, fields: dict[str, set[str]], algos) -> list[dict]:
+    if isinstance(value, str | dict):
+        value = [value]
+    if not isinstance(value, list):
+        raise UsageError(f"{where}: algos must be a list of algorithm names or entries, "
+                         f"got {value!r}")
+    if not value:
+        raise UsageError(f"{where}: algos is empty, so the sweep has nothing to run")
+    entries: list[dict] = []
+    for item in value:
+        entries.extend(_algo_entry(item, where, fields, algos))
+    labels: dict[str, int] = {}
+    for entry in entries:
+        labels[entry["label"]] = labels.get(entry["label"], 0) + 1
+    twice = [label for label, n in labels.items() if n > 1]
+    if twice:
+        raise UsageError(f"{where}: two algos entries are both named {twice[0]!r}; "
+                         f"give them different settings or a `name`")
+    return entries
+
+
+def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[dict]:
+    if isinstance(item, str):
+        item = {"algo": item}
+    if not isinstance(item, dict) or "algo" not in item:
+        raise UsageError(f"{where}: an algos entry is a name or a mapping with an `algo` key, "
+                         f"got {item!r}")
+    algo = check_choice("algo", str(item["algo"]), algos)
+    here = f"{where}: algos entry {algo!r}"
+    allowed = fields[_family(algo)]
+    settings = {k: v for k, v in item.items() if k not in ENTRY_KEYS}
+    for key in settings:
+        _check_field(key, allowed, here, algo)
+    preset = item.get("preset")
+    if preset is not None:
+        preset = _string(preset, f"{here}: preset")
+    name = item.get("name")
+    grid = item.get("grid", {})
+    if not isinstance(grid, dict) or ("grid" in item and not grid):
+        raise UsageError(f"{here}: grid must be a non-empty mapping of config fields to lists "
+                         f"of values, got {grid!r}")
+    points: list[dict] = [{}]
+    for key, values in grid.items():
+        _check_field(key, allowed, f"{here}: grid", algo)
+        if not isinstance(values, list):
+            values = [values]
+        if not values:
+            raise UsageError(f"{here}: grid {key!r} is empty, so the sweep has nothing to run")
+        points = [{**p, key: v} for p in points for v in values]
+    if name is not None and len(points) > 1:
+        raise UsageError(f"{here}: a `name` cannot label the {len(points)} points of a grid")
+    out = []
+    for point in points:
+        label = _name(name, f"{here}: name") if name is not None else _label(
+            algo, preset, {**settings, **point})
+        out.append({"algo": algo, "preset": preset, "label": label,
+                    "fields": {**settings, **point}})
+    return out
+
+
+def _label(algo: str, preset: str | None, settings: dict) -> str:
+    """The folder name of an algos entry: the algo, its preset, then each setting
+    (`sac-fixed-rank_rank-7`, `adarl_rank_rule-ratio`)."""
+    parts = [algo] + ([preset] if preset else [])
+    parts += [f"{k}-{_flag_text(v)}" for k, v in settings.items()]
+    return re.sub(r"[^A-Za-z0-9._=+-]+", "-", "_".join(parts))
+
+
+def _name(value, where: str) -> str:
+    text = _string(value, where)
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._=+-]*", text):
+        raise UsageError(f"{where} {text!r} must be letters, digits and . _ - = + "
+                         f"(it names a folder)")
+    return text
+
+
+def _string(value, where: str) -> str:
+    if not isinstance(value, str | int | float) or isinstance(value, bool) or value == "":
+        raise UsageError(f"{where} must be a non-empty string, got {value!r}")
+    return str(value)
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _seed_text(seeds: tuple[int, ...]) -> str:
+    """(0, 1, 2) -> '0-2'; (0, 2) -> '0_2'; (3,) -> '3'."""
+    if len(seeds) > 1 and list(seeds) == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}-{seeds[-1]}"
+    return "_".join(map(str, seeds))
+
+
+def _flag_text(value) -> str:
+    """A YAML value as `adarl train` flag text: lists joined by commas, booleans in lower case,
+    integral floats (1e6) as integers."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if value is None:
+        return "none"
+    if isinstance(value, list | tuple):
+        return ",".join(_flag_text(v) for v in value)
+    if isinstance(value, str) and re.fullmatch(r"[+-]?\d+(\.\d*)?[eE][+-]?\d+", value):
+        value = float(value)  # YAML reads 1e6 (no dot) as text
+    if isinstance(value, float) and value.is_integer() and abs(value) >= 1:
+        return str(int(value))
+    return str(value)

@@ -1,0 +1,234 @@
+"""SAC losses, regularisers and the rank-adaptation step against NumPy references."""
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from adarl.algos import SAC_FAMILY, sac
+from adarl.nets import mlp
+from adarl.nets.regularisers import parseval_penalty
+from adarl.train import buffer as replay
+
+OBS, ACT = 5, 2
+
+
+def make(algo="adarl", **overrides):
+    config = sac.SACConfig(**{**SAC_FAMILY[algo], "algo": algo, "buffer_size": 512,
+                              "batch_size": 32, "update_every": 10, **overrides}).validate()
+    spec = sac.make_spec(config, OBS, ACT, [-1.0, -2.0], [1.0, 2.0])
+    return spec, sac.init_state(spec, jax.random.PRNGKey(0))
+
+
+def np_mlp(layers, x, final_activation):
+    """NumPy forward of dense/bottleneck layers with ReLU."""
+    for i, p in enumerate(layers):
+        w = p["w"] if "w" in p else np.asarray(p["w1"]) @ np.asarray(p["w2"])
+        x = x @ np.asarray(w) + np.asarray(p["b"])
+        if i < len(layers) - 1 or final_activation:
+            x = np.maximum(x, 0)
+    return x
+
+
+def np_sample(actor, obs, noise, low, high):
+    h = np_mlp(actor["trunk"], obs, True)
+    mu = h @ np.asarray(actor["mu"]["w"]) + np.asarray(actor["mu"]["b"])
+    log_std = np.clip(h @ np.asarray(actor["log_std"]["w"]) + np.asarray(actor["log_std"]["b"]),
+                      -20, 2)
+    std = np.exp(log_std)
+    u = mu + std * noise
+    logp = np.sum(-0.5 * ((u - mu) / std) ** 2 - log_std - 0.5 * np.log(2 * np.pi), axis=-1)
+    logp -= np.sum(np.log(1 - np.tanh(u) ** 2 + 1e-12), axis=-1)  # the textbook correction
+    return (high + low) / 2 + (high - low) / 2 * np.tanh(u), logp
+
+
+def np_q(critic, j, obs, act):
+    layers = jax.tree_util.tree_map(lambda a: np.asarray(a)[j], critic)
+    return np_mlp(layers, np.concatenate([obs, act], -1), False)[:, 0]
+
+
+def random_batch(seed, n=32):
+    rng = np.random.default_rng(seed)
+    return {"obs": rng.normal(size=(n, OBS)).astype(np.float32),
+            "act": rng.uniform(-1, 1, size=(n, ACT)).astype(np.float32),
+            "rew": rng.normal(size=n).astype(np.float32),
+            "next_obs": rng.normal(size=(n, OBS)).astype(np.float32),
+            "done": (rng.uniform(size=n) < 0.2).astype(np.float32)}
+
+
+def noise_of(key, n):
+    """The Gaussian noise `sample_action` draws with `key`."""
+    return np.asarray(jax.random.normal(key, (n, ACT)))
+
+
+@pytest.mark.parametrize("algo", ["sac", "adarl"])
+def test_critic_loss_matches_numpy(algo):
+    spec, state = make(algo)
+    batch = random_batch(1)
+    key = jax.random.PRNGKey(5)
+    loss, info = sac.critic_loss(spec, state["critic"], state, batch, key)
+    low, high = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
+    a2, logp2 = np_sample(state["actor"], batch["next_obs"], noise_of(key, 32), low, high)
+    q_targ = np.minimum(np_q(state["critic_target"], 0, batch["next_obs"], a2),
+                        np_q(state["critic_target"], 1, batch["next_obs"], a2))
+    y = batch["rew"] + 0.99 * (1 - batch["done"]) * (q_targ - 0.2 * logp2)
+    expected = sum(np.mean((np_q(state["critic"], j, batch["obs"], batch["act"]) - y) ** 2)
+                   for j in range(2))
+    assert float(loss) == pytest.approx(expected, rel=1e-4)
+
+
+def test_actor_and_alpha_losses_match_numpy():
+    spec, state = make("sac")
+    batch = random_batch(2)
+    key = jax.random.PRNGKey(9)
+    loss, info = sac.actor_loss(spec, state["actor"], state, batch, key)
+    low, high = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
+    a, logp = np_sample(state["actor"], batch["obs"], noise_of(key, 32), low, high)
+    q = np.minimum(np_q(state["critic"], 0, batch["obs"], a), np_q(state["critic"], 1, batch["obs"], a))
+    assert float(loss) == pytest.approx(np.mean(0.2 * logp - q), rel=1e-4)
+    np.testing.assert_allclose(np.asarray(info["logp"]), logp, rtol=1e-4, atol=1e-4)
+    log_alpha = np.log(0.3)
+    expected = -np.mean(log_alpha * (logp + (-ACT)))
+    assert float(sac.alpha_loss(jnp.asarray(log_alpha), jnp.asarray(logp), -ACT)) == pytest.approx(
+        expected, rel=1e-5)
+
+
+def test_tanh_correction_is_stable_and_exact():
+    u = jnp.linspace(-30, 30, 101)[:, None]
+    got = np.asarray(sac.tanh_log_det(u))
+    assert np.all(np.isfinite(got))
+    small = np.linspace(-3, 3, 7)[:, None]
+    np.testing.assert_allclose(np.asarray(sac.tanh_log_det(jnp.asarray(small))),
+                               np.log(1 - np.tanh(small[:, 0]) ** 2), rtol=1e-5)
+
+
+def test_parseval_penalty_matches_numpy():
+    spec, state = make("sac-parseval")
+    layers = state["actor"]["trunk"]
+    got = float(parseval_penalty(layers, spec.actor, spec.config, False))
+    expected = 0.0
+    for p in layers:  # both trunk layers are hidden layers of the actor (the heads are outputs)
+        w = np.asarray(p["w"]).T  # out × in
+        expected += (64 / w.shape[0]) ** 2 * np.sum((w @ w.T - 2 * np.eye(w.shape[0])) ** 2)
+    assert got == pytest.approx(1e-4 * expected, rel=1e-4)
+    critic = jax.tree_util.tree_map(lambda a: a[0], state["critic"])
+    critic_penalty = float(parseval_penalty(critic, spec.critic, spec.config, True))
+    w0 = np.asarray(critic[0]["w"]).T
+    w1 = np.asarray(critic[1]["w"]).T
+    expected = sum(np.sum((w @ w.T - 2 * np.eye(w.shape[0])) ** 2) for w in (w0, w1))
+    assert critic_penalty == pytest.approx(1e-4 * expected, rel=1e-4)  # output layer excluded
+
+
+def test_orthogonal_init_makes_hidden_layers_parseval_tight():
+    spec, state = make("sac-parseval")
+    w = np.asarray(state["actor"]["trunk"][1]["w"]).T  # 64×64 hidden layer
+    np.testing.assert_allclose(w @ w.T, 2 * np.eye(64), atol=1e-4)
+
+
+def test_sparse_layer_is_sparse_on_a_known_input():
+    d = jnp.eye(4)
+    x = jnp.array([[0.05, 0.5, -1.0, 2.0]])
+    z = np.asarray(mlp.sparse_coding(x, d, 0.1, 0.1))
+    # with D = I the step is ReLU(x − ηλ): entries below ηλ = 0.01 vanish
+    np.testing.assert_allclose(z, [[0.04, 0.49, 0.0, 1.99]], atol=1e-6)
+    spec, state = make("sac-sparse")
+    obs = jnp.asarray(np.random.default_rng(0).normal(size=(64, OBS)), jnp.float32)
+    trunk = state["actor"]["trunk"]
+    h = mlp.apply_layers(trunk, state["masks"]["actor"], obs, spec.actor, final_activation=True)
+    dense = jax.nn.relu(obs @ trunk[0]["w"] + trunk[0]["b"])
+    assert h.shape == (64, 1024)
+    # the shrinkage silences every unit the ReLU silenced and the weakest of the others
+    assert 0.0 < float(jnp.mean(h > 0)) < float(jnp.mean(dense > 0))
+
+
+def filled_state(spec, state, n=300):
+    rng = np.random.default_rng(0)
+    builder = replay.ChunkBuilder(1, n, OBS, ACT)
+    for t in range(n):
+        builder.add(0, rng.normal(size=OBS), rng.uniform(-1, 1, ACT), rng.normal(), 0, None, False)
+    builder.close(0, rng.normal(size=OBS))
+    rows, count = builder.rows()
+    rows = {k: jnp.asarray(v[0]) for k, v in rows.items()}
+    return dict(state, buffer=replay.append_rows(state["buffer"], rows, count[0]))
+
+
+def test_masked_components_get_zero_gradient_and_stay_zero():
+    spec, state = make("sac-fixed-rank", rank=7)
+    state = filled_state(spec, state)
+    w1 = np.asarray(state["actor"]["trunk"][1]["w1"])
+    assert np.all(w1[:, 7:] == 0) and np.any(w1[:, :7] != 0)
+    batch = replay.sample(state["buffer"], jax.random.PRNGKey(1), 32)
+    grads = jax.grad(lambda a: sac.actor_loss(spec, a, state, batch, jax.random.PRNGKey(2))[0])(
+        state["actor"])
+    g = grads["trunk"][1]
+    assert np.all(np.asarray(g["w1"])[:, 7:] == 0) and np.all(np.asarray(g["w2"])[7:] == 0)
+    step = jax.jit(functools.partial(sac.update_step, spec))
+    for _ in range(20):
+        state, _ = step(state)
+    for net in (state["actor"]["trunk"][1], jax.tree_util.tree_map(lambda a: a[1], state["critic"][1])):
+        assert np.all(np.asarray(net["w1"])[:, 7:] == 0)
+        assert np.all(np.asarray(net["w2"])[7:] == 0)
+    assert {k: int(v) for k, v in sac.rank_state(spec, state).items()} == {
+        "actor_1": 7, "q1_1": 7, "q2_1": 7}
+
+
+def test_truncation_keeps_targets_in_step_and_resets_optimisers():
+    spec, state = make("adarl", beta=0.6)
+    state = filled_state(spec, state)
+    step = jax.jit(functools.partial(sac.update_step, spec))
+    for _ in range(30):
+        state, _ = step(state)
+    new, report = sac.truncate(spec, state)
+    ranks = sac.rank_state(spec, new)
+    assert all(1 <= int(r) < 64 for r in ranks.values())
+    assert set(report) == {"actor_1", "q1_1", "q2_1"}
+    shapes = lambda t: jax.tree_util.tree_map(jnp.shape, t)  # noqa: E731
+    assert shapes(new["critic_target"]) == shapes(new["critic"])
+    for q in range(2):
+        target = jax.tree_util.tree_map(lambda a: np.asarray(a)[q], new["critic_target"][1])
+        online = jax.tree_util.tree_map(lambda a: np.asarray(a)[q], new["critic"][1])
+        r = int(ranks[f"q{q + 1}_1"])
+        assert np.linalg.matrix_rank(target["w1"] @ target["w2"], tol=1e-5) == r
+        np.testing.assert_array_equal(target["w1"], online["w1"])
+    zero = jax.tree_util.tree_map(lambda a: float(jnp.abs(a).sum()), new["opt_actor"].mu)
+    assert sum(jax.tree_util.tree_leaves(zero)) == 0.0  # Adam moments reset
+    assert int(new["iteration_start"]) == int(state["n_updates"])
+    # learning rate restarts from zero and warms up
+    assert float(sac.learning_rate(spec, new, 3e-3)) == 0.0
+    assert float(sac.learning_rate(spec, state, 3e-3)) == pytest.approx(3e-3)
+    # replay buffer and temperature carry over
+    assert new["buffer"] is state["buffer"] or np.array_equal(new["buffer"]["obs"], state["buffer"]["obs"])
+
+
+def test_export_matches_the_jax_policy():
+    from adarl.policy import NumpyPolicy
+
+    spec, state = make("adarl", beta=0.7)
+    state = filled_state(spec, state)
+    state, _ = sac.truncate(spec, state)
+    arrays = sac.export_policy(spec, state["actor"], state["masks"]["actor"])
+    policy = NumpyPolicy(arrays)
+    obs = np.random.default_rng(3).normal(size=(16, OBS)).astype(np.float32)
+    expected = np.asarray(sac.act(spec, state["actor"], state["masks"]["actor"], obs, None, True))
+    np.testing.assert_allclose(policy(obs), expected, rtol=1e-5, atol=1e-6)
+    r = int(state["masks"]["actor"][1].sum())
+    assert arrays["l1_w1"].shape == (64, r)
+    assert policy.n_params() < int(arrays["n_params_full"])
+
+
+@pytest.mark.parametrize("bad, message", [
+    ({"beta": 1.0}, "beta"), ({"beta": 0.0}, "beta"), ({"truncate_every": 0}, "truncate-every"),
+    ({"algo": "sac-fixed-rank", "rank": 65}, "rank"), ({"algo": "sac-fixed-rank", "rank": 0}, "rank"),
+    ({"rank_rule": "median"}, "rank rule"), ({"bottleneck": ("actor:2",)}, "actor:2"),
+    ({"algo": "nope"}, "algo"), ({"total_steps": -5}, "total-steps"),
+    ({"algo": "sac-parseval", "parseval_coef": 0.0}, "parseval-coef"),
+    ({"hidden": (64, 0)}, "hidden"),
+])
+def test_bad_config_is_a_one_line_error(bad, message):
+    from adarl.errors import UsageError
+
+    with pytest.raises(UsageError, match=message) as err:
+        sac.SACConfig(**bad).validate()
+    assert "\n" not in str(err.value)

@@ -1,0 +1,96 @@
+"""`adarl evaluate`: a sweep written into the run folder, and bad input (exit code 2)."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from adarl.cli.main import main
+from adarl.evaluation.synthetic import write_run
+
+pytest.importorskip("mujoco")
+
+FAST = ["--episodes", "1", "--max-episode-steps", "15", "--workers", "1"]
+
+
+def test_sweep_is_written_into_the_run_folder(tmp_path, capsys):
+    run = write_run(tmp_path, "r", seeds=(0, 1))
+    argv = [
+        "evaluate",
+        str(run),
+        "--sweep",
+        "torso_length=0.3:0.5:3",
+        "--hold",
+        "foot_length=0.39",
+        *FAST,
+    ]
+    assert main(argv) == 0
+    name = "sweep-torso_length-0.3-0.5-3_hold-foot_length-0.39"
+    table = pd.read_csv(run / "evaluations" / f"{name}.csv")
+    assert len(table) == 3 * 2 and sorted(table["seed"].unique()) == [0, 1]
+    assert sorted(table["p_torso_length"].unique()) == [0.3, 0.4, 0.5]
+    assert list(table.columns[:6]) == ["step", "seed", "dynamics", "episode", "return", "length"]
+    meta = json.loads((run / "evaluations" / f"{name}.json").read_text())
+    assert meta["sweep"] == {"torso_length": [0.3, 0.4, 0.5]} and meta["hold"] == {
+        "foot_length": 0.39
+    }
+    assert meta["command"].startswith(f"adarl evaluate {run} --sweep torso_length=0.3:0.5:3")
+    out = capsys.readouterr().out
+    assert "nominal:torso_length=0.4,foot_length=0.39:" in out and "over 2 seed(s)" in out
+
+
+def test_out_and_the_dynamics_sweep_form(tmp_path):
+    run = write_run(tmp_path, "r", seeds=(0,))
+    out = tmp_path / "custom.csv"
+    assert (
+        main(["evaluate", str(run), "--dynamics", "sweep:mass_scale=0.5,mass_scale=", *FAST]) == 2
+    )
+    assert (
+        main(
+            [
+                "evaluate",
+                str(run),
+                "--dynamics",
+                "sweep:mass_scale=0.5:1.5:2",
+                "--out",
+                str(out),
+                *FAST,
+            ]
+        )
+        == 0
+    )
+    assert sorted(pd.read_csv(out)["p_mass_scale"]) == [0.5, 1.5]
+    assert out.with_suffix(".json").is_file()
+
+
+@pytest.mark.parametrize(
+    "extra, fragment",
+    [
+        (["--sweep", "gravity=5:15:3"], "unknown parameter 'gravity' of task hopper"),
+        (["--sweep", "torso_length=0.2:0.6:0"], "empty grid"),
+        (["--dynamics", "sideways"], "unknown dynamics"),
+        (["--episodes", "0"], "--episodes must be ≥ 1"),
+        (["--checkpoint", "5"], "no checkpoint at step 5"),
+    ],
+)
+def test_bad_requests_exit_2_and_write_nothing(tmp_path, capsys, extra, fragment):
+    run = write_run(tmp_path, "r", seeds=(0,))
+    assert main(["evaluate", str(run), *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("adarl evaluate: error:") and err.count("\n") == 1 and fragment in err, (
+        err
+    )
+    assert not (run / "evaluations").exists()
+
+
+def test_bad_folders_exit_2(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    assert main(["evaluate", str(tmp_path / "empty")]) == 2
+    assert "is not a run folder and holds none" in capsys.readouterr().err
+    bare = write_run(tmp_path, "bare", checkpoint=False)
+    assert main(["evaluate", str(bare)]) == 2
+    assert f"{bare} has no complete checkpoint" in capsys.readouterr().err
+    write_run(tmp_path / "two", "a")
+    write_run(tmp_path / "two", "b", algo="sac")
+    assert main(["evaluate", str(tmp_path / "two"), "--out", str(tmp_path / "x.csv")]) == 2
+    assert "--out names one CSV but 2 runs" in capsys.readouterr().err
