@@ -773,6 +773,8 @@ def train(
             host.obs_norm[i] = _observe(host, i, obs, config)
         param_names = list(info["dynamics"])
     if step >= config.total_steps:
+        for env in env_list:
+            env.close()
         io.atomic_write_text(run_dir / "DONE", f"{step}\n")
         return
     params = host_params(state)  # NumPy (actor, critic) per seed for the rollout
@@ -929,7 +931,7 @@ def train(
                     logs["train"].write({"step": step, "seed": s, "steps_per_s": sps, **scalars})
                     tb.write(
                         step,
-                        {f"seed_{s}/{k}": v for k, v in scalars.items() if not math.isnan(v)}
+                        {f"seed_{s}/{n}": v for n, v in scalars.items() if not math.isnan(v)}
                         | {f"seed_{s}/steps_per_s": sps},
                     )
             if config.eval_episodes and step % config.eval_every == 0:

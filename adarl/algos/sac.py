@@ -156,6 +156,10 @@ PRESETS: dict[str, dict] = {
         "start_steps": 5_000, "eval_every": 10_000, "log_every": 5_000,
         "checkpoint_every": 25_000, "buffer_size": 200_000,
     },
+    # Parseval coefficients the paper tunes over (with --algo sac-parseval)
+    "parseval-1e-3": {"parseval_coef": 1e-3},
+    "parseval-1e-4": {"parseval_coef": 1e-4},
+    "parseval-1e-5": {"parseval_coef": 1e-5},
     # tiny budgets for tests and smoke runs
     "smoke": {
         "total_steps": 2_000, "start_steps": 500, "update_after": 500, "update_every": 50,
