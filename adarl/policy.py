@@ -67,7 +67,9 @@ class NumpyPolicy:
             elif kind == "bottleneck":
                 x = self._act((x @ a[f"l{i}_w1"]) @ a[f"l{i}_w2"] + a[f"l{i}_b"])
             elif kind == "sparse":
-                x = sparse_coding_step(x, a[f"l{i}_d"], float(a[f"l{i}_eta"]), float(a[f"l{i}_lam"]))
+                x = sparse_coding_step(
+                    x, a[f"l{i}_d"], float(a[f"l{i}_eta"]), float(a[f"l{i}_lam"])
+                )
             else:
                 raise ValueError(f"unknown layer kind {kind!r} in policy file")
         mean = x @ a["mean_w"] + a["mean_b"]
@@ -80,8 +82,11 @@ class NumpyPolicy:
         """Parameters of the deterministic policy as stored (bottlenecks at their current rank)."""
         skip = {"action_low", "action_high", "obs_mean", "obs_var", "obs_clip", "n_params_full"}
         return int(
-            sum(v.size for k, v in self.arrays.items() if v.dtype.kind == "f" and k not in skip
-                and not k.endswith(("_eta", "_lam")))
+            sum(
+                v.size
+                for k, v in self.arrays.items()
+                if v.dtype.kind == "f" and k not in skip and not k.endswith(("_eta", "_lam"))
+            )
         )
 
 
@@ -92,8 +97,9 @@ def sparse_coding_step(x: np.ndarray, d: np.ndarray, eta: float, lam: float) -> 
 
 def save(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
     """Write a policy file atomically (checks that it loads first)."""
-    from adarl.train.io import atomic_write_bytes
     import io
+
+    from adarl.train.io import atomic_write_bytes
 
     NumpyPolicy(arrays)
     buf = io.BytesIO()

@@ -21,7 +21,9 @@ import sys
 import tempfile
 import time
 
-os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
+os.environ.setdefault(
+    "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+)
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
@@ -31,9 +33,17 @@ from adarl.train import sac_loop  # noqa: E402
 
 
 def paper_config(algo: str, seeds: int, **overrides) -> sac.SACConfig:
-    values = {**SAC_FAMILY[algo], "algo": algo, "task": "hopper", "dynamics": "paper",
-              "seeds": tuple(range(seeds)), "start_steps": 0, "update_after": 50,
-              "buffer_size": 100_000, "total_steps": 10**9}
+    values = {
+        **SAC_FAMILY[algo],
+        "algo": algo,
+        "task": "hopper",
+        "dynamics": "paper",
+        "seeds": tuple(range(seeds)),
+        "start_steps": 0,
+        "update_after": 50,
+        "buffer_size": 100_000,
+        "total_steps": 10**9,
+    }
     values.update(overrides)
     return sac.SACConfig(**values).validate()
 
@@ -85,10 +95,23 @@ def sb3_rate(steps: int, warmup: int) -> float | None:
 
     torch.set_num_threads(1)
     env = gymnasium.make("Hopper-v5")
-    model = SAC("MlpPolicy", env, learning_rate=3e-3, buffer_size=100_000, batch_size=256,
-                tau=0.005, gamma=0.99, train_freq=1, gradient_steps=1, learning_starts=50,
-                ent_coef=0.2, policy_kwargs={"net_arch": [64, 64]}, device="cpu", verbose=0,
-                seed=0)
+    model = SAC(
+        "MlpPolicy",
+        env,
+        learning_rate=3e-3,
+        buffer_size=100_000,
+        batch_size=256,
+        tau=0.005,
+        gamma=0.99,
+        train_freq=1,
+        gradient_steps=1,
+        learning_starts=50,
+        ent_coef=0.2,
+        policy_kwargs={"net_arch": [64, 64]},
+        device="cpu",
+        verbose=0,
+        seed=0,
+    )
     model.learn(total_timesteps=warmup)
     start = time.perf_counter()
     model.learn(total_timesteps=steps, reset_num_timesteps=False)
@@ -103,19 +126,27 @@ def update_cost(width: int, rank: int, n: int = 200) -> float:
     if width != 64:
         from adarl.nets import mlp
 
-        spec = sac.Spec(actor=mlp.make_layout([11, 64, 64], (1,), width),
-                        critic=mlp.make_layout([14, 64, 64, 1], (1,), width),
-                        obs_dim=11, act_dim=3, act_low=spec.act_low, act_high=spec.act_high,
-                        config=config)
+        spec = sac.Spec(
+            actor=mlp.make_layout([11, 64, 64], (1,), width),
+            critic=mlp.make_layout([14, 64, 64, 1], (1,), width),
+            obs_dim=11,
+            act_dim=3,
+            act_low=spec.act_low,
+            act_high=spec.act_high,
+            config=config,
+        )
     state = sac.init_state(spec, jax.random.PRNGKey(0))
     from adarl.train import buffer as replay
 
-    rows = {"obs": np.random.default_rng(0).normal(size=(n + 1, 11)).astype(np.float32),
-            "act": np.zeros((n + 1, 3), np.float32), "rew": np.zeros(n + 1, np.float32),
-            "term": np.zeros(n + 1, np.uint8), "valid": np.ones(n + 1, np.uint8)}
+    rows = {
+        "obs": np.random.default_rng(0).normal(size=(n + 1, 11)).astype(np.float32),
+        "act": np.zeros((n + 1, 3), np.float32),
+        "rew": np.zeros(n + 1, np.float32),
+        "term": np.zeros(n + 1, np.uint8),
+        "valid": np.ones(n + 1, np.uint8),
+    }
     state = dict(state, buffer=replay.append_rows(state["buffer"], rows, n + 1))
-    step = jax.jit(lambda s: jax.lax.scan(lambda c, _: sac.update_step(spec, c), s, None,
-                                          length=n))
+    step = jax.jit(lambda s: jax.lax.scan(lambda c, _: sac.update_step(spec, c), s, None, length=n))
     jax.block_until_ready(step(state))
     start = time.perf_counter()
     jax.block_until_ready(step(state))
@@ -130,8 +161,10 @@ def main() -> int:
     parser.add_argument("--no-sb3", action="store_true")
     parser.add_argument("--no-rnac", action="store_true")
     args = parser.parse_args()
-    print(f"Hopper-v5, paper dynamics, (64, 64) ReLU, batch 256, 1 update/step; {os.cpu_count()} "
-          f"cores; jax {jax.__version__}; {args.steps} timed steps\n")
+    print(
+        f"Hopper-v5, paper dynamics, (64, 64) ReLU, batch 256, 1 update/step; {os.cpu_count()} "
+        f"cores; jax {jax.__version__}; {args.steps} timed steps\n"
+    )
     reference = None if args.no_sb3 else sb3_rate(args.steps, args.warmup)
     if reference is None:
         print("Stable-Baselines3 SAC: not installed (pip install -e .[bench]); no ratio")
@@ -140,18 +173,24 @@ def main() -> int:
     for algo in args.algos:
         one, run = training_rate(paper_config(algo, 1), args.steps, args.warmup)
         five, _ = training_rate(paper_config(algo, 5), args.steps // 3, args.warmup)
-        line = (f"{algo:6s} 1 seed: {one:8.1f} steps/s   5 seeds: {five:7.1f} steps/s x 5 = "
-                f"{5 * five:8.1f} seed-steps/s ({5 * five / one:.2f}x one seed)")
+        line = (
+            f"{algo:6s} 1 seed: {one:8.1f} steps/s   5 seeds: {five:7.1f} steps/s x 5 = "
+            f"{5 * five:8.1f} seed-steps/s ({5 * five / one:.2f}x one seed)"
+        )
         if reference:
             line += f"   1 seed vs SB3: {one / reference:.2f}x"
         print(line)
         if algo == "adarl":
             seconds, share = truncation_cost(run, one)
-            print(f"       truncation: {seconds * 1000:.1f} ms = {100 * share:.4f}% of the "
-                  f"training time between truncations (d_t = {run.config.truncate_every})")
+            print(
+                f"       truncation: {seconds * 1000:.1f} ms = {100 * share:.4f}% of the "
+                f"training time between truncations (d_t = {run.config.truncate_every})"
+            )
     masked, compact = update_cost(64, 7), update_cost(7, 7)
-    print(f"\nupdate at rank 7: masked 64-wide {masked:.3f} ms, compact 7-wide {compact:.3f} ms "
-          f"per step (one seed); a rank change would also cost a recompile of several seconds")
+    print(
+        f"\nupdate at rank 7: masked 64-wide {masked:.3f} ms, compact 7-wide {compact:.3f} ms "
+        f"per step (one seed); a rank change would also cost a recompile of several seconds"
+    )
     if not args.no_rnac:
         try:
             sys.path.insert(0, os.path.dirname(__file__))

@@ -67,6 +67,9 @@ class RNACConfig:
     # being "the worst", i.e. δ = 1/(n+1) = 1/3 for its 2 candidates.
     delta: float = 1.0 / 3.0
     n_candidates: int = 2
+    # ds: simulate and value the candidates at every step, as the original does, instead of only
+    # on the steps that take the worst case (same transitions, more simulator steps)
+    eager_candidates: bool = False
     action_noise: float = 5e-3  # uniform ±noise on every executed action (both sets)
     weight_reg: float = 1e-5  # ipm: TD residual −= weight_reg·‖θ_V‖₂ (ds: 0, as the original)
     # --- PPO (the original's tricks 1-10)
@@ -867,7 +870,7 @@ def train(
                         rng, config.n_candidates, act_dim, config.action_noise, config.delta
                     )
                     values = None
-                    if worst:  # only then are the candidates simulated and valued
+                    if worst or config.eager_candidates:  # only then are they simulated
                         a_cand = clip(action + noises, low, high).astype(act_dtype)
                         cand = _peek(host, i, shadows[i].candidates(a_cand), config)
                         values = critic_value(critic, cand, np)

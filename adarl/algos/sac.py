@@ -91,8 +91,18 @@ class SACConfig:
         check_choice("activation", self.activation, mlp.ACTIVATIONS)
         check_choice("init", self.init, mlp.INITS)
         check_choice("rank rule", self.rank_rule, rank.RANK_RULES)
-        positive = ["total_steps", "batch_size", "buffer_size", "update_every", "max_episode_steps",
-                    "truncate_every", "eval_every", "log_every", "checkpoint_every", "eval_episodes"]
+        positive = [
+            "total_steps",
+            "batch_size",
+            "buffer_size",
+            "update_every",
+            "max_episode_steps",
+            "truncate_every",
+            "eval_every",
+            "log_every",
+            "checkpoint_every",
+            "eval_episodes",
+        ]
         for name in positive:
             if getattr(self, name) <= 0:
                 raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
@@ -121,11 +131,15 @@ class SACConfig:
         if self.parseval_coef < 0:
             raise UsageError(f"parseval-coef must be ≥ 0, got {self.parseval_coef}")
         if self.algo == "sac-parseval" and self.parseval_coef <= 0:
-            raise UsageError(f"parseval-coef must be > 0 for sac-parseval, got {self.parseval_coef}")
+            raise UsageError(
+                f"parseval-coef must be > 0 for sac-parseval, got {self.parseval_coef}"
+            )
         n_hidden_layers = len(self.hidden) - 1
         for spec in self.bottleneck:
             net, _, idx = spec.partition(":")
-            allowed = [f"{n}:{i}" for n in ("actor", "critic") for i in range(1, n_hidden_layers + 1)]
+            allowed = [
+                f"{n}:{i}" for n in ("actor", "critic") for i in range(1, n_hidden_layers + 1)
+            ]
             if net not in ("actor", "critic") or not idx.isdigit() or spec not in allowed:
                 raise UsageError(
                     f"bottleneck layer {spec!r} does not exist; allowed: {', '.join(allowed) or 'none'}"
@@ -147,14 +161,25 @@ PRESETS: dict[str, dict] = {
     "paper": {},
     # Spinning Up's own SAC defaults (its sac() signature).
     "spinningup": {
-        "hidden": (256, 256), "lr_actor": 1e-3, "lr_critic": 1e-3, "batch_size": 100,
-        "start_steps": 10_000, "update_after": 1_000, "update_every": 50,
+        "hidden": (256, 256),
+        "lr_actor": 1e-3,
+        "lr_critic": 1e-3,
+        "batch_size": 100,
+        "start_steps": 10_000,
+        "update_after": 1_000,
+        "update_every": 50,
     },
     # Hopper with paper dynamics in under 15 minutes on a 2-core machine.
     "quickstart": {
-        "task": "hopper", "dynamics": "paper", "total_steps": 150_000, "truncate_every": 30_000,
-        "start_steps": 5_000, "eval_every": 10_000, "log_every": 5_000,
-        "checkpoint_every": 25_000, "buffer_size": 200_000,
+        "task": "hopper",
+        "dynamics": "paper",
+        "total_steps": 150_000,
+        "truncate_every": 30_000,
+        "start_steps": 5_000,
+        "eval_every": 10_000,
+        "log_every": 5_000,
+        "checkpoint_every": 25_000,
+        "buffer_size": 200_000,
     },
     # Parseval coefficients the paper tunes over (with --algo sac-parseval)
     "parseval-1e-3": {"parseval_coef": 1e-3},
@@ -162,9 +187,18 @@ PRESETS: dict[str, dict] = {
     "parseval-1e-5": {"parseval_coef": 1e-5},
     # tiny budgets for tests and smoke runs
     "smoke": {
-        "total_steps": 2_000, "start_steps": 500, "update_after": 500, "update_every": 50,
-        "truncate_every": 500, "warmup_steps": 100, "eval_every": 1_000, "eval_episodes": 1,
-        "log_every": 500, "checkpoint_every": 1_000, "buffer_size": 5_000, "batch_size": 64,
+        "total_steps": 2_000,
+        "start_steps": 500,
+        "update_after": 500,
+        "update_every": 50,
+        "truncate_every": 500,
+        "warmup_steps": 100,
+        "eval_every": 1_000,
+        "eval_episodes": 1,
+        "log_every": 500,
+        "checkpoint_every": 1_000,
+        "buffer_size": 5_000,
+        "batch_size": 64,
         "max_episode_steps": 200,
     },
 }
@@ -216,8 +250,10 @@ def make_spec(config: SACConfig, obs_dim: int, act_dim: int, low, high) -> Spec:
     return Spec(
         actor=actor_layout(config, obs_dim),
         critic=critic_layout(config, obs_dim, act_dim),
-        obs_dim=obs_dim, act_dim=act_dim,
-        act_low=tuple(float(x) for x in low), act_high=tuple(float(x) for x in high),
+        obs_dim=obs_dim,
+        act_dim=act_dim,
+        act_low=tuple(float(x) for x in low),
+        act_high=tuple(float(x) for x in high),
         config=config,
     )
 
@@ -233,8 +269,9 @@ def init_state(spec: Spec, key: jnp.ndarray) -> dict:
     width = c.sparse_width or c.hidden[-1]
     init_rank = c.rank or None
     actor = {
-        "trunk": mlp.init_layers(k_actor, spec.actor, c.init, rank=init_rank,
-                                 has_output_layer=False),
+        "trunk": mlp.init_layers(
+            k_actor, spec.actor, c.init, rank=init_rank, has_output_layer=False
+        ),
         # the heads are output layers: gain 1 under orthogonal init
         "mu": mlp.init_layers(k_mu, (("dense", width, spec.act_dim),), c.init)[0],
         "log_std": mlp.init_layers(k_std, (("dense", width, spec.act_dim),), c.init)[0],
@@ -242,7 +279,9 @@ def init_state(spec: Spec, key: jnp.ndarray) -> dict:
     q1 = mlp.init_layers(k_q1, spec.critic, c.init, rank=init_rank)
     q2 = mlp.init_layers(k_q2, spec.critic, c.init, rank=init_rank)
     critic = jax.tree_util.tree_map(lambda a, b: jnp.stack([a, b]), q1, q2)
-    critic_masks = [None if m is None else jnp.stack([m, m]) for m in _initial_masks(spec.critic, c)]
+    critic_masks = [
+        None if m is None else jnp.stack([m, m]) for m in _initial_masks(spec.critic, c)
+    ]
     masks = {"actor": _initial_masks(spec.actor, c), "critic": critic_masks}
     return {
         "actor": actor,
@@ -269,8 +308,16 @@ def _adam():
 def actor_forward(spec: Spec, actor: dict, masks: list, obs: jnp.ndarray):
     """Mean and clamped log-std of the pre-squash Gaussian."""
     c = spec.config
-    h = mlp.apply_layers(actor["trunk"], masks, obs, spec.actor, c.activation,
-                         final_activation=True, sparse_eta=c.sparse_eta, sparse_lam=c.sparse_lambda)
+    h = mlp.apply_layers(
+        actor["trunk"],
+        masks,
+        obs,
+        spec.actor,
+        c.activation,
+        final_activation=True,
+        sparse_eta=c.sparse_eta,
+        sparse_lam=c.sparse_lambda,
+    )
     mu = h @ actor["mu"]["w"] + actor["mu"]["b"]
     log_std = jnp.clip(h @ actor["log_std"]["w"] + actor["log_std"]["b"], LOG_STD_MIN, LOG_STD_MAX)
     return mu, log_std
@@ -308,8 +355,15 @@ def q_values(spec: Spec, critic, critic_masks, obs, act):
     x = jnp.concatenate([obs, act], axis=-1)
 
     def one(params, masks):
-        out = mlp.apply_layers(params, masks, x, spec.critic, c.activation,
-                               sparse_eta=c.sparse_eta, sparse_lam=c.sparse_lambda)
+        out = mlp.apply_layers(
+            params,
+            masks,
+            x,
+            spec.critic,
+            c.activation,
+            sparse_eta=c.sparse_eta,
+            sparse_lam=c.sparse_lambda,
+        )
         return out[..., 0]
 
     return jax.vmap(one)(critic, critic_masks)
@@ -320,10 +374,12 @@ def critic_loss(spec: Spec, critic, state, batch, key):
     """Σ_j mean (Q_j(s,a) − y)², y = r + γ(1−d)(min_j Q̄_j(s',ã') − α log π(ã'|s')), ã' ~ π(·|s')."""
     c = spec.config
     alpha = jnp.exp(state["log_alpha"])
-    next_act, next_logp = sample_action(spec, state["actor"], state["masks"]["actor"],
-                                        batch["next_obs"], key)
-    q_next = q_values(spec, state["critic_target"], state["masks"]["critic"], batch["next_obs"],
-                      next_act).min(axis=0)
+    next_act, next_logp = sample_action(
+        spec, state["actor"], state["masks"]["actor"], batch["next_obs"], key
+    )
+    q_next = q_values(
+        spec, state["critic_target"], state["masks"]["critic"], batch["next_obs"], next_act
+    ).min(axis=0)
     target = batch["rew"] + c.gamma * (1.0 - batch["done"]) * (q_next - alpha * next_logp)
     target = jax.lax.stop_gradient(target)
     q = q_values(spec, critic, state["masks"]["critic"], batch["obs"], batch["act"])
@@ -366,8 +422,9 @@ def learning_rate(spec: Spec, state, base_lr: float):
     if not c.adapt_rank:
         return jnp.asarray(base_lr, jnp.float32)
     t = state["n_updates"] - state["iteration_start"]
-    scheduled = rank.restart_learning_rate(t, base_lr, c.warmup_steps, c.truncate_every,
-                                           c.lr_min_ratio)
+    scheduled = rank.restart_learning_rate(
+        t, base_lr, c.warmup_steps, c.truncate_every, c.lr_min_ratio
+    )
     if c.schedule_first_iteration:
         return scheduled
     return jnp.where(state["n_truncations"] > 0, scheduled, base_lr)
@@ -382,15 +439,21 @@ def update_step(spec: Spec, state: dict, _=None):
     lr_pi = learning_rate(spec, state, c.lr_actor)
 
     (_, q_info), q_grads = jax.value_and_grad(critic_loss, argnums=1, has_aux=True)(
-        spec, state["critic"], state, batch, k_critic)
+        spec, state["critic"], state, batch, k_critic
+    )
     q_step, opt_critic = _adam().update(q_grads, state["opt_critic"])
-    critic = optax.apply_updates(state["critic"], jax.tree_util.tree_map(lambda u: -lr_q * u, q_step))
+    critic = optax.apply_updates(
+        state["critic"], jax.tree_util.tree_map(lambda u: -lr_q * u, q_step)
+    )
     state = dict(state, critic=critic, opt_critic=opt_critic)
 
     (_, pi_info), pi_grads = jax.value_and_grad(actor_loss, argnums=1, has_aux=True)(
-        spec, state["actor"], state, batch, k_actor)
+        spec, state["actor"], state, batch, k_actor
+    )
     pi_step, opt_actor = _adam().update(pi_grads, state["opt_actor"])
-    actor = optax.apply_updates(state["actor"], jax.tree_util.tree_map(lambda u: -lr_pi * u, pi_step))
+    actor = optax.apply_updates(
+        state["actor"], jax.tree_util.tree_map(lambda u: -lr_pi * u, pi_step)
+    )
 
     logp = pi_info.pop("logp")
     log_alpha, opt_alpha = state["log_alpha"], state["opt_alpha"]
@@ -401,10 +464,18 @@ def update_step(spec: Spec, state: dict, _=None):
         log_alpha = log_alpha - c.lr_alpha * a_step
 
     target = jax.tree_util.tree_map(
-        lambda t, o: c.polyak * t + (1.0 - c.polyak) * o, state["critic_target"], critic)
-    state = dict(state, actor=actor, opt_actor=opt_actor, critic_target=target,
-                 log_alpha=log_alpha, opt_alpha=opt_alpha, key=key,
-                 n_updates=state["n_updates"] + 1)
+        lambda t, o: c.polyak * t + (1.0 - c.polyak) * o, state["critic_target"], critic
+    )
+    state = dict(
+        state,
+        actor=actor,
+        opt_actor=opt_actor,
+        critic_target=target,
+        log_alpha=log_alpha,
+        opt_alpha=opt_alpha,
+        key=key,
+        n_updates=state["n_updates"] + 1,
+    )
     info = {**q_info, **pi_info, "alpha": jnp.exp(log_alpha), "entropy": -logp.mean(), "lr": lr_pi}
     return state, info
 
@@ -447,8 +518,9 @@ def truncate(spec: Spec, state: dict):
         if layer[0] != "bottleneck":
             continue
         p = actor_trunk[i]
-        w1, w2, m, s, proposed = rank.truncate_bottleneck(p["w1"], p["w2"], actor_masks[i],
-                                                          c.beta, c.rank_rule)
+        w1, w2, m, s, proposed = rank.truncate_bottleneck(
+            p["w1"], p["w2"], actor_masks[i], c.beta, c.rank_rule
+        )
         actor_trunk[i], actor_masks[i] = dict(p, w1=w1, w2=w2), m
         report[f"actor_{i}"] = (s, proposed, m.sum().astype(jnp.int32))
     critic = list(state["critic"])
@@ -465,10 +537,14 @@ def truncate(spec: Spec, state: dict):
     actor = dict(state["actor"], trunk=actor_trunk)
     state = dict(
         state,
-        actor=actor, critic=critic, critic_target=critic,
+        actor=actor,
+        critic=critic,
+        critic_target=critic,
         masks={"actor": actor_masks, "critic": critic_masks},
-        opt_actor=_adam().init(actor), opt_critic=_adam().init(critic),
-        iteration_start=state["n_updates"], n_truncations=state["n_truncations"] + 1,
+        opt_actor=_adam().init(actor),
+        opt_critic=_adam().init(critic),
+        iteration_start=state["n_updates"],
+        n_truncations=state["n_truncations"] + 1,
     )
     return state, report
 
@@ -491,10 +567,14 @@ def export_policy(spec: Spec, actor: dict, masks: list) -> dict[str, np.ndarray]
     """The deterministic policy of one seed in the `adarl.policy` file format; bottleneck
     factors are cut to their rank, so the file holds the compressed network."""
     c = spec.config
-    out = {"format": np.array("adarl-policy-1"), "activation": np.array(c.activation),
-           "n_layers": np.array(len(spec.actor)), "squash": np.array("tanh"),
-           "action_low": np.asarray(spec.act_low, np.float32),
-           "action_high": np.asarray(spec.act_high, np.float32)}
+    out = {
+        "format": np.array("adarl-policy-1"),
+        "activation": np.array(c.activation),
+        "n_layers": np.array(len(spec.actor)),
+        "squash": np.array("tanh"),
+        "action_low": np.asarray(spec.act_low, np.float32),
+        "action_high": np.asarray(spec.act_high, np.float32),
+    }
     n_full = 0
     for i, (layer, p) in enumerate(zip(spec.actor, actor["trunk"])):
         p = {k: np.asarray(v) for k, v in p.items()}

@@ -58,10 +58,12 @@ def main(argv: list[str] | None = None) -> int:
     # One XLA thread: for these small networks two threads are slower on a 2-core machine, and
     # sweep workers must not fight over cores (override by setting XLA_FLAGS yourself).
     os.environ.setdefault(
-        "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
+        "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+    )
     # Reuse compiled updates across runs (a fresh compile of the SAC update takes 5-20 s).
     os.environ.setdefault(
-        "JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "adarl", "jax"))
+        "JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "adarl", "jax")
+    )
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):

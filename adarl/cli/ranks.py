@@ -23,8 +23,10 @@ def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
     config = load_run_config(run_dir)
     path = run_dir / "truncations.csv"
     if not path.exists():
-        raise UsageError(f"{run_dir} has no truncations.csv (algo {config.get('algo')!r} does "
-                         "not adapt its rank)")
+        raise UsageError(
+            f"{run_dir} has no truncations.csv (algo {config.get('algo')!r} does "
+            "not adapt its rank)"
+        )
     rows = read_csv(path)
     if layer is not None:
         layers = sorted({r["layer"] for r in rows})
@@ -37,8 +39,10 @@ def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
         cell = f"{r['old_rank']}→{r['new_rank']}"
         table.setdefault((int(r["step"]), r["layer"]), {})[int(r["seed"])] = cell
     header = ["step", "layer", *[f"seed {s}" for s in seeds]]
-    body = [[str(step), name, *[cells.get(s, "") for s in seeds]]
-            for (step, name), cells in sorted(table.items())]
+    body = [
+        [str(step), name, *[cells.get(s, "") for s in seeds]]
+        for (step, name), cells in sorted(table.items())
+    ]
     widths = [max(len(row[i]) for row in [header, *body]) for i in range(len(header))]
     fmt = lambda row: "  ".join(c.rjust(w) for c, w in zip(row, widths))  # noqa: E731
     lines = [fmt(header), fmt(["-" * w for w in widths])] + [fmt(row) for row in body]

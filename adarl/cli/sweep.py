@@ -22,21 +22,51 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "then: adarl report SWEEP_DIR --out REPORT_DIR"
     )
     parser.add_argument("spec", metavar="SWEEP.yaml|PRESET", help="a sweep file or a preset name")
-    parser.add_argument("--out", default=None, metavar="DIR",
-                        help="sweep folder (default sweeps/<name>); re-running resumes it")
-    parser.add_argument("--backend", choices=("local", "ray"), default="local",
-                        help="local process pool (default) or Ray")
-    parser.add_argument("--address", default=None, metavar="ADDR",
-                        help="Ray cluster (HOST:PORT, ray://HOST:PORT or auto); "
-                             "default: start a local Ray instance")
-    parser.add_argument("--workers", type=_positive, default=None, metavar="N",
-                        help="units trained at once (default: cores / cpus_per_unit)")
-    parser.add_argument("--max-retries", type=_non_negative, default=2, metavar="K",
-                        help="retries of a crashed unit per invocation (default 2)")
-    parser.add_argument("--progress-every", type=float, default=60.0, metavar="SECONDS",
-                        help="seconds between progress lines of running units (default 60)")
-    parser.add_argument("--dry-run", action="store_true",
-                        help="check the file and list the units and what each would do; run nothing")
+    parser.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="sweep folder (default sweeps/<name>); re-running resumes it",
+    )
+    parser.add_argument(
+        "--backend",
+        choices=("local", "ray"),
+        default="local",
+        help="local process pool (default) or Ray",
+    )
+    parser.add_argument(
+        "--address",
+        default=None,
+        metavar="ADDR",
+        help="Ray cluster (HOST:PORT, ray://HOST:PORT or auto); "
+        "default: start a local Ray instance",
+    )
+    parser.add_argument(
+        "--workers",
+        type=_positive,
+        default=None,
+        metavar="N",
+        help="units trained at once (default: cores / cpus_per_unit)",
+    )
+    parser.add_argument(
+        "--max-retries",
+        type=_non_negative,
+        default=2,
+        metavar="K",
+        help="retries of a crashed unit per invocation (default 2)",
+    )
+    parser.add_argument(
+        "--progress-every",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="seconds between progress lines of running units (default 60)",
+    )
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check the file and list the units and what each would do; run nothing",
+    )
 
 
 def _positive(text: str) -> int:
@@ -78,13 +108,19 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("sweeps") / sweep.name
     manifest.check_compatible(manifest.read(out), sweep, out)
     if args.dry_run:
-        where = (f"Ray ({args.address or 'a local instance'})" if args.backend == "ray"
-                 else f"{args.workers or default_workers(sweep.cpus_per_unit)} local workers")
+        where = (
+            f"Ray ({args.address or 'a local instance'})"
+            if args.backend == "ray"
+            else f"{args.workers or default_workers(sweep.cpus_per_unit)} local workers"
+        )
         print(runner.plan_text(sweep, out, where))
         return 0
     backend = make_backend(args.backend, args.address, args.workers, sweep.cpus_per_unit)
-    options = runner.Options(max_retries=args.max_retries, progress_every=args.progress_every,
-                             command=command_line(args, out))
+    options = runner.Options(
+        max_retries=args.max_retries,
+        progress_every=args.progress_every,
+        command=command_line(args, out),
+    )
     try:
         code = runner.run_sweep(sweep, out, backend, options)
     except BaseException:

@@ -32,13 +32,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "  adarl train --resume runs/hopper-adarl-20261121-120000\n"
         "Every config field is a flag (--field-name VALUE); tuples take commas (--seeds 0,2,4 or 0-4)."
     )
-    parser.add_argument("--algo", default="adarl",
-                        help="adarl, sac, sac-fixed-rank, sac-parseval, sac-sparse, rnac")
-    parser.add_argument("--preset", default=None,
-                        help="named settings applied before the flags (e.g. paper, quickstart, smoke)")
-    parser.add_argument("--out", default=None, help="run folder (default runs/<task>-<algo>-<time>)")
-    parser.add_argument("--resume", default=None, metavar="RUN_DIR",
-                        help="continue a run from its newest complete checkpoint")
+    parser.add_argument(
+        "--algo", default="adarl", help="adarl, sac, sac-fixed-rank, sac-parseval, sac-sparse, rnac"
+    )
+    parser.add_argument(
+        "--preset",
+        default=None,
+        help="named settings applied before the flags (e.g. paper, quickstart, smoke)",
+    )
+    parser.add_argument(
+        "--out", default=None, help="run folder (default runs/<task>-<algo>-<time>)"
+    )
+    parser.add_argument(
+        "--resume",
+        default=None,
+        metavar="RUN_DIR",
+        help="continue a run from its newest complete checkpoint",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     seen = {"algo"}
     for family, cls in _config_classes().items():
@@ -47,8 +57,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             if f.name in seen:
                 continue
             seen.add(f.name)
-            group.add_argument(f"--{f.name.replace('_', '-')}", dest=f"cfg_{f.name}", default=None,
-                               metavar=_metavar(f), help=f"default: {_default_text(f)}")
+            group.add_argument(
+                f"--{f.name.replace('_', '-')}",
+                dest=f"cfg_{f.name}",
+                default=None,
+                metavar=_metavar(f),
+                help=f"default: {_default_text(f)}",
+            )
 
 
 def _metavar(f) -> str:
@@ -187,8 +202,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     family, config = build_config(args)
     task = getattr(config, "task", "task")
-    run_dir = Path(args.out) if args.out else Path("runs") / (
-        f"{task}-{args.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+    run_dir = (
+        Path(args.out)
+        if args.out
+        else Path("runs") / (f"{task}-{args.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+    )
     _trainer(family)(config, run_dir, False, not args.no_progress, command)
     print(f"run folder: {run_dir}")
     return 0

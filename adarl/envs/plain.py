@@ -48,10 +48,14 @@ class PlainEnv(gymnasium.Wrapper):
 
     def get_state(self) -> dict:
         raw = self.env.unwrapped
-        return {"episode_index": self.episode_index, "started": self._started,
-                "elapsed": self._elapsed, "pending_seed": self._pending_seed,
-                "np_random": copy.deepcopy(raw.np_random.bit_generator.state),
-                "state": np.array(raw.state, dtype=np.float64)}
+        return {
+            "episode_index": self.episode_index,
+            "started": self._started,
+            "elapsed": self._elapsed,
+            "pending_seed": self._pending_seed,
+            "np_random": copy.deepcopy(raw.np_random.bit_generator.state),
+            "state": np.array(raw.state, dtype=np.float64),
+        }
 
     def set_state(self, state: dict) -> None:
         raw = self.env.unwrapped
@@ -64,7 +68,7 @@ class PlainEnv(gymnasium.Wrapper):
 
 
 def make_plain(task: str, seed: int | None = 0, max_episode_steps: int = 1000, **_) -> PlainEnv:
-    env_id = task[len(PREFIX):]
+    env_id = task[len(PREFIX) :]
     try:
         raw = gymnasium.make(env_id, disable_env_checker=True).unwrapped
     except gymnasium.error.Error as exc:

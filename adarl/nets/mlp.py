@@ -24,7 +24,9 @@ INITS = ("torch", "orthogonal")
 
 
 def make_layout(
-    sizes: list[int], bottlenecks: tuple[int, ...] = (), width: int | None = None,
+    sizes: list[int],
+    bottlenecks: tuple[int, ...] = (),
+    width: int | None = None,
     sparse_after: int | None = None,
 ) -> tuple:
     """Layout for an MLP through `sizes` (input, hidden…, output).
@@ -54,9 +56,16 @@ def _torch_uniform(key, shape, fan_in, dtype):
     return jax.random.uniform(key, shape, dtype, -bound, bound)
 
 
-def init_layers(key, layout: tuple, init: str = "torch", gain: float = 2.0**0.5,
-                out_gain: float = 1.0, rank: int | None = None, has_output_layer: bool = True,
-                dtype=jnp.float32) -> list[dict]:
+def init_layers(
+    key,
+    layout: tuple,
+    init: str = "torch",
+    gain: float = 2.0**0.5,
+    out_gain: float = 1.0,
+    rank: int | None = None,
+    has_output_layer: bool = True,
+    dtype=jnp.float32,
+) -> list[dict]:
     """Initialise parameters for `layout`.
 
     `torch`: PyTorch's nn.Linear defaults (what Spinning Up, and so the paper, uses); a bottleneck
@@ -101,9 +110,16 @@ def init_layers(key, layout: tuple, init: str = "torch", gain: float = 2.0**0.5,
     return params
 
 
-def apply_layers(params: list[dict], masks: list, x: jnp.ndarray, layout: tuple,
-                 activation: str = "relu", final_activation: bool = False,
-                 sparse_eta: float = 0.1, sparse_lam: float = 0.1) -> jnp.ndarray:
+def apply_layers(
+    params: list[dict],
+    masks: list,
+    x: jnp.ndarray,
+    layout: tuple,
+    activation: str = "relu",
+    final_activation: bool = False,
+    sparse_eta: float = 0.1,
+    sparse_lam: float = 0.1,
+) -> jnp.ndarray:
     """Forward pass. `masks[i]` is the rank mask of layer i if it is a bottleneck (else None)."""
     act = ACTIVATIONS[activation]
     last = max(i for i, spec in enumerate(layout) if spec[0] != "sparse")

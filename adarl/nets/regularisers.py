@@ -16,7 +16,9 @@ def parseval_term(w: jnp.ndarray, scale: float) -> jnp.ndarray:
     return jnp.sum((gram - scale * jnp.eye(gram.shape[0], dtype=w.dtype)) ** 2)
 
 
-def parseval_penalty(layers: list[dict], layout: tuple, config, has_output_layer: bool) -> jnp.ndarray:
+def parseval_penalty(
+    layers: list[dict], layout: tuple, config, has_output_layer: bool
+) -> jnp.ndarray:
     """c · (64/width)² · Σ over hidden (non-output) weights of ‖W Wᵀ − s·I‖²_F; biases and the
     output layer are not regularised (wechu/parseval_reg). `width` is each layer's output size."""
     total = jnp.zeros(())

@@ -31,9 +31,13 @@ def thread_env(cpus: int, cache_dir: Path | None = None) -> dict[str, str]:
     """Environment for a unit's process: XLA, OpenMP and BLAS limited to `cpus` threads so that
     concurrent units do not fight over cores; JAX's compilation cache in `cache_dir` (unless the
     caller's environment already names one) so resumed and retried units skip recompiling."""
-    kept = [f for f in os.environ.get("XLA_FLAGS", "").split()
-            if not f.lstrip("-").startswith(("xla_cpu_multi_thread_eigen",
-                                              "intra_op_parallelism_threads"))]
+    kept = [
+        f
+        for f in os.environ.get("XLA_FLAGS", "").split()
+        if not f.lstrip("-").startswith(
+            ("xla_cpu_multi_thread_eigen", "intra_op_parallelism_threads")
+        )
+    ]
     if cpus == 1:
         kept += ["--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1"]
     else:
@@ -57,12 +61,23 @@ def run_job(job: dict) -> dict:
     Returns the exit status (negative: killed by that signal) and the host."""
     log = Path(job["log"])
     log.parent.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "adarl.sweeps.worker", "--parent", str(os.getpid()),
-               *job["worker_args"]]
+    command = [
+        sys.executable,
+        "-m",
+        "adarl.sweeps.worker",
+        "--parent",
+        str(os.getpid()),
+        *job["worker_args"],
+    ]
     with open(log, "ab") as out:
-        proc = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, env={**os.environ, **job["env"]},
-                                start_new_session=True)  # Ctrl-C reaches the sweep, not units
+        proc = subprocess.Popen(
+            command,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env={**os.environ, **job["env"]},
+            start_new_session=True,
+        )  # Ctrl-C reaches the sweep, not units
         with _children_lock:
             _children.add(proc)
         try:
@@ -129,8 +144,9 @@ class RayBackend:
             if address:
                 ray.init(address=address, include_dashboard=False, log_to_driver=False)
             else:
-                ray.init(num_cpus=workers * cpus_per_unit, include_dashboard=False,
-                         log_to_driver=False)
+                ray.init(
+                    num_cpus=workers * cpus_per_unit, include_dashboard=False, log_to_driver=False
+                )
         except (ConnectionError, OSError, RuntimeError, ValueError) as exc:
             ray.shutdown()
             message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
@@ -140,8 +156,11 @@ class RayBackend:
         self._remote = ray.remote(num_cpus=cpus_per_unit, max_retries=0)(run_job)
         self._refs: dict[cf.Future, object] = {}
         cpus = int(ray.cluster_resources().get("CPU", 0))
-        self.where = (f"Ray cluster at {address} ({cpus} CPUs)" if address
-                      else f"local Ray instance ({cpus} CPUs)")
+        self.where = (
+            f"Ray cluster at {address} ({cpus} CPUs)"
+            if address
+            else f"local Ray instance ({cpus} CPUs)"
+        )
 
     def submit(self, job: dict) -> cf.Future:
         ref = self._remote.remote(job)
@@ -162,8 +181,9 @@ def import_ray():
     try:
         import ray
     except ImportError:
-        raise UsageError(f"--backend ray needs Ray, which is not installed; install it with: "
-                         f"{RAY_INSTALL}") from None
+        raise UsageError(
+            f"--backend ray needs Ray, which is not installed; install it with: {RAY_INSTALL}"
+        ) from None
     return ray
 
 

@@ -33,8 +33,10 @@ def read(out: Path) -> dict | None:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
-        raise UsageError(f"{path} is unreadable ({type(exc).__name__}); move it away to start "
-                         f"the sweep's bookkeeping afresh") from None
+        raise UsageError(
+            f"{path} is unreadable ({type(exc).__name__}); move it away to start "
+            f"the sweep's bookkeeping afresh"
+        ) from None
     if not isinstance(data, dict) or data.get("format_version") != FORMAT_VERSION:
         raise UsageError(f"{path} is not a sweep manifest of format {FORMAT_VERSION}")
     return data
@@ -48,8 +50,10 @@ def check_compatible(data: dict | None, sweep: Sweep, out: Path) -> None:
     old = data.get("units", {})
     for unit in sweep.units:
         if unit.id in old and list(old[unit.id].get("train_args", [])) != list(unit.train_args):
-            raise UsageError(f"{out} holds a different sweep: unit {unit.id} was started with other "
-                             f"settings; choose another --out")
+            raise UsageError(
+                f"{out} holds a different sweep: unit {unit.id} was started with other "
+                f"settings; choose another --out"
+            )
 
 
 class Manifest:
@@ -68,10 +72,16 @@ class Manifest:
         data.update(name=sweep.name, source=sweep.source, command=command, updated=now)
         for unit in sweep.units:
             record = data["units"].setdefault(unit.id, {"status": "queued", "attempts": 0})
-            record.update(task=unit.task, algo=unit.algo, label=unit.label,
-                          seeds=list(unit.seeds), total_steps=unit.total_steps,
-                          train_args=list(unit.train_args), run_dir=unit.id,
-                          log=f"logs/{unit.flat_id}.log")
+            record.update(
+                task=unit.task,
+                algo=unit.algo,
+                label=unit.label,
+                seeds=list(unit.seeds),
+                total_steps=unit.total_steps,
+                train_args=list(unit.train_args),
+                run_dir=unit.id,
+                log=f"logs/{unit.flat_id}.log",
+            )
         return cls(Path(out) / FILE, data)
 
     def unit(self, uid: str) -> dict:

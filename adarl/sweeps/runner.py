@@ -64,11 +64,14 @@ def unit_state(out: Path, unit: Unit) -> str:
 def plan_text(sweep: Sweep, out: Path, where: str) -> str:
     """The dry run: every unit, what it trains and what running it now would do."""
     width = max(len(u.id) for u in sweep.units)
-    lines = [f"sweep {sweep.name} ({sweep.source}): {len(sweep.units)} units on {where}, "
-             f"output {out}"]
+    lines = [
+        f"sweep {sweep.name} ({sweep.source}): {len(sweep.units)} units on {where}, output {out}"
+    ]
     for unit in sweep.units:
-        lines.append(f"  {unit.id:<{width}}  {unit_state(out, unit):<22} "
-                     f"adarl train {' '.join(unit.train_args)}")
+        lines.append(
+            f"  {unit.id:<{width}}  {unit_state(out, unit):<22} "
+            f"adarl train {' '.join(unit.train_args)}"
+        )
     steps = sum(u.total_steps * len(u.seeds) for u in sweep.units)
     lines.append(f"total: {steps:,} environment steps over all seeds")
     return "\n".join(lines)
@@ -116,8 +119,10 @@ class SweepRun:
     # ------------------------------------------------------------------ loop
     def run(self) -> int:
         start = time.monotonic()
-        echo(f"sweep {self.sweep.name}: {len(self.sweep.units)} units on {self.backend.where}, "
-             f"output {self.out}")
+        echo(
+            f"sweep {self.sweep.name}: {len(self.sweep.units)} units on {self.backend.where}, "
+            f"output {self.out}"
+        )
         for unit in self.sweep.units:
             state = unit_state(self.out, unit)
             if state == "done":
@@ -134,8 +139,9 @@ class SweepRun:
         last_progress = time.monotonic()
         try:
             while self.in_flight:
-                finished, _ = cf.wait(list(self.in_flight), timeout=POLL_S,
-                                      return_when=cf.FIRST_COMPLETED)
+                finished, _ = cf.wait(
+                    list(self.in_flight), timeout=POLL_S, return_when=cf.FIRST_COMPLETED
+                )
                 self.notice_started()
                 for future in finished:
                     self.finish(future)
@@ -163,10 +169,16 @@ class SweepRun:
     def job(self, unit: Unit, attempt: int) -> dict:
         return {
             "worker_args": [
-                "--run-dir", str(self.out / unit.id),
-                "--lock", str(self.state_file(unit, "lock")),
-                "--marker", str(self.state_file(unit, "started.json")),
-                "--attempt", str(attempt), "--", *unit.train_args,
+                "--run-dir",
+                str(self.out / unit.id),
+                "--lock",
+                str(self.state_file(unit, "lock")),
+                "--marker",
+                str(self.state_file(unit, "started.json")),
+                "--attempt",
+                str(attempt),
+                "--",
+                *unit.train_args,
             ],
             "log": str(self.out / "logs" / f"{unit.flat_id}.log"),
             "env": self.env,
@@ -185,13 +197,24 @@ class SweepRun:
             marker = _read_json(self.state_file(unit, "started.json"))
             if not marker or marker.get("attempt") != attempt:
                 continue
-            self.manifest.update(unit.id, status="running", pid=marker.get("pid"),
-                                 host=marker.get("host"), step=marker.get("step", 0),
-                                 started=marker.get("time"))
-            how = {"fresh": "from scratch", "done": "already done",
-                   "resume": f"resuming from step {marker.get('step', 0):,}"}.get(marker["mode"])
-            self.line(unit, "running",
-                      f"attempt {attempt}, {how}, on {marker.get('host')} pid {marker.get('pid')}")
+            self.manifest.update(
+                unit.id,
+                status="running",
+                pid=marker.get("pid"),
+                host=marker.get("host"),
+                step=marker.get("step", 0),
+                started=marker.get("time"),
+            )
+            how = {
+                "fresh": "from scratch",
+                "done": "already done",
+                "resume": f"resuming from step {marker.get('step', 0):,}",
+            }.get(marker["mode"])
+            self.line(
+                unit,
+                "running",
+                f"attempt {attempt}, {how}, on {marker.get('host')} pid {marker.get('pid')}",
+            )
 
     def finish(self, future: cf.Future) -> None:
         unit, attempt = self.in_flight.pop(future)
@@ -206,8 +229,15 @@ class SweepRun:
             error = "exited without finishing (no DONE)"
         elapsed = self._elapsed(unit)
         if error is None:
-            self.manifest.update(unit.id, status="done", returncode=0, error=None, pid=None,
-                                 step=unit.total_steps, finished=time.time())
+            self.manifest.update(
+                unit.id,
+                status="done",
+                returncode=0,
+                error=None,
+                pid=None,
+                step=unit.total_steps,
+                finished=time.time(),
+            )
             self.line(unit, "done", f"attempt {attempt}{elapsed}")
             return
         last = _last_line(self.out / "logs" / f"{unit.flat_id}.log")
@@ -216,14 +246,21 @@ class SweepRun:
         reason = NOT_RETRIED.get(returncode)
         if reason is None and self.tries[unit.id] <= self.options.max_retries:
             left = self.options.max_retries + 1 - self.tries[unit.id]
-            self.line(unit, "failed", f"attempt {attempt}: {detail}; retrying ({left} "
-                                      f"attempt{'s' * (left != 1)} left)")
+            self.line(
+                unit,
+                "failed",
+                f"attempt {attempt}: {detail}; retrying ({left} attempt{'s' * (left != 1)} left)",
+            )
             self.submit(unit)
         else:
             self.manifest.update(unit.id, status="failed", finished=time.time())
             why = f" ({reason}, not retried)" if reason else ""
-            self.line(unit, "failed", f"attempt {attempt}{why}: {detail}; log "
-                                      f"{self.out / 'logs' / (unit.flat_id + '.log')}")
+            self.line(
+                unit,
+                "failed",
+                f"attempt {attempt}{why}: {detail}; log "
+                f"{self.out / 'logs' / (unit.flat_id + '.log')}",
+            )
 
     def progress_lines(self) -> None:
         for unit, _ in self.in_flight.values():
@@ -237,9 +274,13 @@ class SweepRun:
             self.manifest.update(unit.id, step=step, steps_per_s=rate)
             left = (unit.total_steps - step) / rate if rate > 0 else None
             eta = f", eta {_duration(left)}" if left is not None else ""
-            self.line(unit, "running", f"step {step:,}/{unit.total_steps:,} "
-                                       f"({100 * step / unit.total_steps:.0f}%), "
-                                       f"{rate:,.0f} steps/s{eta}")
+            self.line(
+                unit,
+                "running",
+                f"step {step:,}/{unit.total_steps:,} "
+                f"({100 * step / unit.total_steps:.0f}%), "
+                f"{rate:,.0f} steps/s{eta}",
+            )
 
     def line(self, unit: Unit, status: str, detail: str) -> None:
         echo(f"{time.strftime('%H:%M:%S')} {unit.id:<{self.width}}  {status:<7}  {detail}")
@@ -249,12 +290,16 @@ class SweepRun:
         ids = [u.id for u in self.sweep.units]
         done = [i for i in ids if units[i]["status"] == "done"]
         failed = [i for i in ids if units[i]["status"] == "failed"]
-        echo(f"sweep {self.sweep.name}: {len(ids)} units, {len(done)} done "
-             f"({self.skipped} before this run), {len(failed)} failed, in {_duration(seconds)}")
+        echo(
+            f"sweep {self.sweep.name}: {len(ids)} units, {len(done)} done "
+            f"({self.skipped} before this run), {len(failed)} failed, in {_duration(seconds)}"
+        )
         for uid in failed:
             record = units[uid]
-            echo(f"  failed: {uid} after {record['attempts']} attempt"
-                 f"{'s' * (record['attempts'] != 1)}: {record.get('error')}")
+            echo(
+                f"  failed: {uid} after {record['attempts']} attempt"
+                f"{'s' * (record['attempts'] != 1)}: {record.get('error')}"
+            )
         if failed:
             echo("re-run the same command to retry the failed units (finished ones are kept)")
         echo(f"manifest: {self.manifest.path}")
@@ -283,8 +328,7 @@ def last_train_row(path: Path) -> tuple[int, float] | None:
         return None
     cells = rows[-1].split(",")
     try:
-        return (int(float(cells[header.index("step")])),
-                float(cells[header.index("steps_per_s")]))
+        return (int(float(cells[header.index("step")])), float(cells[header.index("steps_per_s")]))
     except (IndexError, ValueError):
         return None
 
@@ -330,4 +374,3 @@ def _duration(seconds: float) -> str:
     if hours:
         return f"{hours}h{minutes:02d}m"
     return f"{minutes}m{secs:02d}s" if minutes else f"{secs}s"
-

@@ -20,8 +20,20 @@ from adarl.errors import UsageError, check_choice
 
 PRESET_DIR = Path(__file__).parent / "presets"
 
-TOP_KEYS = ("name", "description", "tasks", "algos", "seeds", "seeds_per_unit", "budget",
-            "dynamics", "preset", "evaluation", "overrides", "cpus_per_unit")
+TOP_KEYS = (
+    "name",
+    "description",
+    "tasks",
+    "algos",
+    "seeds",
+    "seeds_per_unit",
+    "budget",
+    "dynamics",
+    "preset",
+    "evaluation",
+    "overrides",
+    "cpus_per_unit",
+)
 REQUIRED_KEYS = ("tasks", "algos", "seeds", "budget")
 EVAL_KEYS = ("eval_every", "eval_episodes", "eval_dynamics")
 ENTRY_KEYS = ("algo", "name", "preset", "grid")
@@ -69,7 +81,8 @@ def resolve(spec: str) -> Path:
     if "/" not in spec and preset.is_file():
         return preset
     raise UsageError(
-        f"no sweep file or preset named {spec!r}; presets: {', '.join(list_presets())}")
+        f"no sweep file or preset named {spec!r}; presets: {', '.join(list_presets())}"
+    )
 
 
 def load(spec: str) -> Sweep:
@@ -128,7 +141,7 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
         preset = _string(preset, f"{where}: preset")
     entries = _algo_entries(doc["algos"], where, fields, ALGOS)
 
-    groups = [tuple(seeds[i:i + group]) for i in range(0, len(seeds), group)]
+    groups = [tuple(seeds[i : i + group]) for i in range(0, len(seeds), group)]
     units = []
     for task, task_overrides in tasks.items():
         for entry in entries:
@@ -138,8 +151,18 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
             values.update({k: v for k, v in task_overrides.items() if k in family_fields})
             values.update(entry["fields"])
             for seed_group in groups:
-                units.append(_unit(task, entry, seed_group, budget[task],
-                                   entry["preset"] or preset, values, where, envs))
+                units.append(
+                    _unit(
+                        task,
+                        entry,
+                        seed_group,
+                        budget[task],
+                        entry["preset"] or preset,
+                        values,
+                        where,
+                        envs,
+                    )
+                )
     return Sweep(name=name, source=source, units=tuple(units), cpus_per_unit=int(cpus))
 
 
@@ -149,12 +172,24 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
     args = ["--algo", algo]
     if preset:
         args += ["--preset", preset]
-    args += ["--task", task, "--seeds", ",".join(map(str, seeds)),
-             "--total-steps", str(total_steps)]
+    args += [
+        "--task",
+        task,
+        "--seeds",
+        ",".join(map(str, seeds)),
+        "--total-steps",
+        str(total_steps),
+    ]
     for name, value in values.items():
-        if name == "eval_dynamics" and isinstance(value, list) and any("," in str(v) for v in value):
-            raise UsageError(f"{where}: {uid}: an eval_dynamics item with a comma cannot be "
-                             f"passed to adarl train --eval-dynamics; got {value!r}")
+        if (
+            name == "eval_dynamics"
+            and isinstance(value, list)
+            and any("," in str(v) for v in value)
+        ):
+            raise UsageError(
+                f"{where}: {uid}: an eval_dynamics item with a comma cannot be "
+                f"passed to adarl train --eval-dynamics; got {value!r}"
+            )
         args += [f"--{name.replace('_', '-')}", _flag_text(value)]
     try:
         config = build_config(args)
@@ -163,8 +198,15 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
             envs.parse_dynamics(spec, task)
     except UsageError as exc:
         raise UsageError(f"{where}: {uid}: {exc}") from None
-    return Unit(id=uid, task=task, algo=algo, label=label, seeds=tuple(seeds),
-                total_steps=int(total_steps), train_args=tuple(args))
+    return Unit(
+        id=uid,
+        task=task,
+        algo=algo,
+        label=label,
+        seeds=tuple(seeds),
+        total_steps=int(total_steps),
+        train_args=tuple(args),
+    )
 
 
 def build_config(train_args: list[str]):
@@ -189,8 +231,10 @@ def _family(algo: str) -> str:
 def _family_fields() -> dict[str, set[str]]:
     from adarl.cli.train import _config_classes
 
-    return {family: {f.name for f in dataclasses.fields(cls)}
-            for family, cls in _config_classes().items()}
+    return {
+        family: {f.name for f in dataclasses.fields(cls)}
+        for family, cls in _config_classes().items()
+    }
 
 
 def _check_keys(mapping: dict, allowed, where: str) -> None:
@@ -210,8 +254,10 @@ def _tasks(value, where: str, all_fields: set[str]) -> dict[str, dict]:
             raise UsageError(f"{where}: task {twice[0]!r} is listed twice")
         value = dict.fromkeys(value)
     if not isinstance(value, dict):
-        raise UsageError(f"{where}: tasks must be a list of task names or a mapping "
-                         f"task -> overrides, got {value!r}")
+        raise UsageError(
+            f"{where}: tasks must be a list of task names or a mapping "
+            f"task -> overrides, got {value!r}"
+        )
     if not value:
         raise UsageError(f"{where}: tasks is empty, so the sweep has nothing to run")
     tasks = {}
@@ -236,8 +282,7 @@ def _check_field(key, allowed: set[str], where: str, algo: str | None = None) ->
         raise UsageError(f"{where}: {key!r} is set by the spec's {RESERVED_FIELDS[key]!r} key")
     if key not in allowed:
         what = f"a config field of {algo}" if algo else "a config field of any algorithm"
-        raise UsageError(f"{where}: unknown key {key!r}; it is not {what} "
-                         f"(see adarl train --help)")
+        raise UsageError(f"{where}: unknown key {key!r}; it is not {what} (see adarl train --help)")
 
 
 def _seeds(value, where: str) -> tuple[int, ...]:
@@ -251,8 +296,9 @@ def _seeds(value, where: str) -> tuple[int, ...]:
         except ValueError:
             raise UsageError(f"{where}: seeds {value!r} are not a list like 0-4 or 0,2,5") from None
     if not isinstance(value, list) or not all(_is_int(s) and s >= 0 for s in value):
-        raise UsageError(f"{where}: seeds must be integers ≥ 0 (a list, or text like 0-4), "
-                         f"got {value!r}")
+        raise UsageError(
+            f"{where}: seeds must be integers ≥ 0 (a list, or text like 0-4), got {value!r}"
+        )
     if not value:
         raise UsageError(f"{where}: seeds is empty, so the sweep has nothing to run")
     if len(set(value)) != len(value):
@@ -265,16 +311,18 @@ def _budget(value, tasks: dict, where: str) -> dict[str, int]:
         value = {task: value for task in tasks}
     extra = [t for t in value if t not in tasks]
     if extra:
-        raise UsageError(f"{where}: budget names task {extra[0]!r}, which is not in tasks "
-                         f"({', '.join(tasks)})")
+        raise UsageError(
+            f"{where}: budget names task {extra[0]!r}, which is not in tasks ({', '.join(tasks)})"
+        )
     budget = {}
     for task in tasks:
         if task not in value:
             raise UsageError(f"{where}: budget has no entry for task {task!r}")
         steps = _steps(value[task])
         if steps is None or steps <= 0:
-            raise UsageError(f"{where}: budget for {task} must be a number of steps > 0, "
-                             f"got {value[task]!r}")
+            raise UsageError(
+                f"{where}: budget for {task} must be a number of steps > 0, got {value[task]!r}"
+            )
         budget[task] = steps
     return budget
 
@@ -297,8 +345,9 @@ def _algo_entries(value, where: str, fields: dict[str, set[str]], algos) -> list
     if isinstance(value, str | dict):
         value = [value]
     if not isinstance(value, list):
-        raise UsageError(f"{where}: algos must be a list of algorithm names or entries, "
-                         f"got {value!r}")
+        raise UsageError(
+            f"{where}: algos must be a list of algorithm names or entries, got {value!r}"
+        )
     if not value:
         raise UsageError(f"{where}: algos is empty, so the sweep has nothing to run")
     entries: list[dict] = []
@@ -309,8 +358,10 @@ def _algo_entries(value, where: str, fields: dict[str, set[str]], algos) -> list
         labels[entry["label"]] = labels.get(entry["label"], 0) + 1
     twice = [label for label, n in labels.items() if n > 1]
     if twice:
-        raise UsageError(f"{where}: two algos entries are both named {twice[0]!r}; "
-                         f"give them different settings or a `name`")
+        raise UsageError(
+            f"{where}: two algos entries are both named {twice[0]!r}; "
+            f"give them different settings or a `name`"
+        )
     return entries
 
 
@@ -318,8 +369,9 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
     if isinstance(item, str):
         item = {"algo": item}
     if not isinstance(item, dict) or "algo" not in item:
-        raise UsageError(f"{where}: an algos entry is a name or a mapping with an `algo` key, "
-                         f"got {item!r}")
+        raise UsageError(
+            f"{where}: an algos entry is a name or a mapping with an `algo` key, got {item!r}"
+        )
     algo = check_choice("algo", str(item["algo"]), algos)
     here = f"{where}: algos entry {algo!r}"
     allowed = fields[_family(algo)]
@@ -332,8 +384,10 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
     name = item.get("name")
     grid = item.get("grid", {})
     if not isinstance(grid, dict) or ("grid" in item and not grid):
-        raise UsageError(f"{here}: grid must be a non-empty mapping of config fields to lists "
-                         f"of values, got {grid!r}")
+        raise UsageError(
+            f"{here}: grid must be a non-empty mapping of config fields to lists "
+            f"of values, got {grid!r}"
+        )
     points: list[dict] = [{}]
     for key, values in grid.items():
         _check_field(key, allowed, f"{here}: grid", algo)
@@ -346,10 +400,14 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
         raise UsageError(f"{here}: a `name` cannot label the {len(points)} points of a grid")
     out = []
     for point in points:
-        label = _name(name, f"{here}: name") if name is not None else _label(
-            algo, preset, {**settings, **point})
-        out.append({"algo": algo, "preset": preset, "label": label,
-                    "fields": {**settings, **point}})
+        label = (
+            _name(name, f"{here}: name")
+            if name is not None
+            else _label(algo, preset, {**settings, **point})
+        )
+        out.append(
+            {"algo": algo, "preset": preset, "label": label, "fields": {**settings, **point}}
+        )
     return out
 
 
@@ -364,8 +422,9 @@ def _label(algo: str, preset: str | None, settings: dict) -> str:
 def _name(value, where: str) -> str:
     text = _string(value, where)
     if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._=+-]*", text):
-        raise UsageError(f"{where} {text!r} must be letters, digits and . _ - = + "
-                         f"(it names a folder)")
+        raise UsageError(
+            f"{where} {text!r} must be letters, digits and . _ - = + (it names a folder)"
+        )
     return text
 
 

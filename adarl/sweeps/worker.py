@@ -43,8 +43,10 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     lock = _take_lock(Path(args.lock))
     if lock is None:
-        print(f"{args.run_dir} is being trained by another process (lock {args.lock} is held)",
-              flush=True)
+        print(
+            f"{args.run_dir} is being trained by another process (lock {args.lock} is held)",
+            flush=True,
+        )
         return EXIT_BUSY
 
     from adarl.train.io import atomic_write_json, checkpoint_dirs
@@ -59,12 +61,23 @@ def main(argv: list[str] | None = None) -> int:
         mode = "fresh"
         if run_dir.exists():  # killed before its first checkpoint: nothing to keep
             shutil.rmtree(run_dir)
-    atomic_write_json(args.marker, {
-        "attempt": args.attempt, "pid": os.getpid(), "host": socket.gethostname(),
-        "mode": mode, "step": step, "time": time.time()})
+    atomic_write_json(
+        args.marker,
+        {
+            "attempt": args.attempt,
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "mode": mode,
+            "step": step,
+            "time": time.time(),
+        },
+    )
     stamp = time.strftime("%Y-%m-%d %H:%M:%S")
-    print(f"=== {stamp} attempt {args.attempt} on {socket.gethostname()} (pid {os.getpid()}): "
-          f"{mode}{f' from step {step}' if mode == 'resume' else ''}", flush=True)
+    print(
+        f"=== {stamp} attempt {args.attempt} on {socket.gethostname()} (pid {os.getpid()}): "
+        f"{mode}{f' from step {step}' if mode == 'resume' else ''}",
+        flush=True,
+    )
     if mode == "done":
         return 0
     if mode == "resume":
@@ -73,6 +86,9 @@ def main(argv: list[str] | None = None) -> int:
         command = ["train", *train_args, "--out", str(run_dir), "--no-progress"]
     print("$ adarl " + " ".join(command), flush=True)
     sys.argv = ["adarl", *command]  # what `adarl train` records as the run's command
+    # tensorboardX imports torch when it is installed (only to accept torch tensors): seconds of
+    # start-up per unit for nothing, as the trainers are JAX. Make that optional import fail.
+    sys.modules.setdefault("torch", None)
     from adarl.cli.main import main as adarl_main
 
     return adarl_main(command)

@@ -127,7 +127,12 @@ class ChunkBuilder:
 
     def rows(self) -> tuple[dict, np.ndarray]:
         return (
-            {"obs": self.obs, "act": self.act, "rew": self.rew, "term": self.term,
-             "valid": self.valid},
+            {
+                "obs": self.obs,
+                "act": self.act,
+                "rew": self.rew,
+                "term": self.term,
+                "valid": self.valid,
+            },
             self.n.copy(),
         )

@@ -34,6 +34,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp makes 0600; outputs are ordinary readable files
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -158,7 +159,9 @@ def unflatten_tree(template, arrays: dict[str, np.ndarray], prefix: str = ""):
     for path, leaf in paths:
         key = prefix + jax.tree_util.keystr(path)
         if key not in arrays:
-            raise UsageError(f"checkpoint is missing array {key!r}; it was written by another version")
+            raise UsageError(
+                f"checkpoint is missing array {key!r}; it was written by another version"
+            )
         value = arrays[key]
         if tuple(value.shape) != tuple(np.shape(leaf)):
             raise UsageError(
@@ -193,7 +196,9 @@ def save_checkpoint(
             np.savez(f, **arrays)
             f.flush()
             os.fsync(f.fileno())
-        meta = dict(meta, step=int(step), format_version=RUN_FORMAT_VERSION, adarl_version=__version__)
+        meta = dict(
+            meta, step=int(step), format_version=RUN_FORMAT_VERSION, adarl_version=__version__
+        )
         with open(tmp / "meta.json", "w", encoding="utf-8") as f:
             json.dump(meta, f, indent=1, sort_keys=True, default=_json_default)
             f.flush()

@@ -30,8 +30,17 @@ from adarl.errors import UsageError
 from adarl.train import buffer as replay
 from adarl.train import io
 
-BASE_COLUMNS = ["step", "seed", "steps_per_s", "loss_q", "loss_pi", "alpha", "entropy", "q_mean",
-                "lr"]
+BASE_COLUMNS = [
+    "step",
+    "seed",
+    "steps_per_s",
+    "loss_q",
+    "loss_pi",
+    "alpha",
+    "entropy",
+    "q_mean",
+    "lr",
+]
 BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
 
 
@@ -67,9 +76,16 @@ def compile_functions(spec: sac.Spec) -> Compiled:
             layers = state["actor"]["trunk"]
             from adarl.nets import mlp
 
-            h = mlp.apply_layers(layers, state["masks"]["actor"], obs, spec.actor, c.activation,
-                                 final_activation=True, sparse_eta=c.sparse_eta,
-                                 sparse_lam=c.sparse_lambda)
+            h = mlp.apply_layers(
+                layers,
+                state["masks"]["actor"],
+                obs,
+                spec.actor,
+                c.activation,
+                final_activation=True,
+                sparse_eta=c.sparse_eta,
+                sparse_lam=c.sparse_lambda,
+            )
             out["active_fraction"] = jnp.mean(h > 0)
         return out
 
@@ -85,7 +101,9 @@ def compile_functions(spec: sac.Spec) -> Compiled:
 
 
 def config_to_yaml(config, extra: dict | None = None) -> str:
-    values = {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()}
+    values = {
+        k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()
+    }
     values.update(extra or {})
     return yaml.safe_dump(values, sort_keys=False)
 
@@ -104,15 +122,24 @@ class Run:
         self.n = len(self.seeds)
         if not config.task.startswith(PREFIX):
             get_task(config.task)  # a one-line error for an unknown task before anything is built
-        self.envs = [make_any(config.task, dynamics=config.dynamics, seed=s,
-                          max_episode_steps=config.max_episode_steps) for s in self.seeds]
+        self.envs = [
+            make_any(
+                config.task,
+                dynamics=config.dynamics,
+                seed=s,
+                max_episode_steps=config.max_episode_steps,
+            )
+            for s in self.seeds
+        ]
         space = self.envs[0].action_space
-        self.spec = sac.make_spec(config, self.envs[0].observation_space.shape[0],
-                                  space.shape[0], space.low, space.high)
+        self.spec = sac.make_spec(
+            config, self.envs[0].observation_space.shape[0], space.shape[0], space.low, space.high
+        )
         self.fns = compile_functions(self.spec)
         self.layer_names = sac.bottleneck_names(config)
-        self.builder = replay.ChunkBuilder(self.n, config.update_every, self.spec.obs_dim,
-                                           self.spec.act_dim)
+        self.builder = replay.ChunkBuilder(
+            self.n, config.update_every, self.spec.obs_dim, self.spec.act_dim
+        )
 
     # ------------------------------------------------------------------ state
     def fresh(self) -> None:
@@ -186,17 +213,21 @@ class Run:
         if self.config.sparse_width:
             extra.append("active_fraction")
         self.logs = {
-            "episodes.csv": io.CsvLog(d / "episodes.csv",
-                                      ["step", "seed", "episode", "return", "length", *params]),
-            "train.csv": io.CsvLog(d / "train.csv", BASE_COLUMNS + extra
-                                   + [f"rank_{n}" for n in self.layer_names]),
-            "eval.csv": io.CsvLog(d / "eval.csv",
-                                  ["step", "seed", "dynamics", "episode", "return", "length"]),
+            "episodes.csv": io.CsvLog(
+                d / "episodes.csv", ["step", "seed", "episode", "return", "length", *params]
+            ),
+            "train.csv": io.CsvLog(
+                d / "train.csv", BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
+            ),
+            "eval.csv": io.CsvLog(
+                d / "eval.csv", ["step", "seed", "dynamics", "episode", "return", "length"]
+            ),
         }
         if self.config.adapt_rank:
             self.logs["truncations.csv"] = io.CsvLog(
                 d / "truncations.csv",
-                ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"])
+                ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"],
+            )
         self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets else None)
 
     def param_columns(self) -> list[str]:
@@ -212,8 +243,9 @@ class Run:
         if self.step < self.config.start_steps:
             low, high = np.asarray(self.spec.act_low), np.asarray(self.spec.act_high)
             return np.stack([rng.uniform(low, high).astype(np.float32) for rng in self.np_rngs])
-        actions, self.act_keys = self.fns.act(self.state["actor"], self.state["masks"]["actor"],
-                                              jnp.asarray(self.obs), self.act_keys)
+        actions, self.act_keys = self.fns.act(
+            self.state["actor"], self.state["masks"]["actor"], jnp.asarray(self.obs), self.act_keys
+        )
         return np.asarray(actions)
 
     def env_step(self, actions: np.ndarray) -> None:
@@ -225,9 +257,13 @@ class Run:
             done = terminated or truncated
             self.builder.add(i, self.obs[i], actions[i], reward, terminated, next_obs, done)
             if done:
-                row = {"step": self.step, "seed": self.seeds[i],
-                       "episode": int(info["episode_index"]),
-                       "return": float(self.ep_return[i]), "length": int(self.ep_length[i])}
+                row = {
+                    "step": self.step,
+                    "seed": self.seeds[i],
+                    "episode": int(info["episode_index"]),
+                    "return": float(self.ep_return[i]),
+                    "length": int(self.ep_length[i]),
+                }
                 row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
                 self.logs["episodes.csv"].write(row)
                 self.tb.write(self.step, {f"episode/return/seed{self.seeds[i]}": self.ep_return[i]})
@@ -261,13 +297,22 @@ class Run:
         spectra = {name: np.asarray(s) for name, (s, _, _) in report.items()}
         buf = BytesIO()
         np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
-        io.atomic_write_bytes(self.run_dir / "spectra" / f"step_{self.step:012d}.npz", buf.getvalue())
+        io.atomic_write_bytes(
+            self.run_dir / "spectra" / f"step_{self.step:012d}.npz", buf.getvalue()
+        )
         rows = []
         for name, (_, proposed, new) in report.items():
             for i, seed in enumerate(self.seeds):
-                rows.append({"step": self.step, "seed": seed, "layer": name,
-                             "old_rank": int(old[name][i]), "proposed_rank": int(proposed[i]),
-                             "new_rank": int(new[i])})
+                rows.append(
+                    {
+                        "step": self.step,
+                        "seed": seed,
+                        "layer": name,
+                        "old_rank": int(old[name][i]),
+                        "proposed_rank": int(proposed[i]),
+                        "new_rank": int(new[i]),
+                    }
+                )
         self.logs["truncations.csv"].write(rows)
 
     def write_train_log(self, steps_per_s: float) -> None:
@@ -280,18 +325,27 @@ class Run:
         diag = jax.device_get(self.fns.diagnostics(self.state))
         rows = []
         for i, seed in enumerate(self.seeds):
-            row = {"step": self.step, "seed": seed, "steps_per_s": steps_per_s,
-                   "loss_q": mean["loss_q"][i], "loss_pi": mean["loss_pi"][i],
-                   "alpha": mean["alpha"][i], "entropy": mean["entropy"][i],
-                   "q_mean": mean["q_mean"][i], "lr": mean["lr"][i]}
+            row = {
+                "step": self.step,
+                "seed": seed,
+                "steps_per_s": steps_per_s,
+                "loss_q": mean["loss_q"][i],
+                "loss_pi": mean["loss_pi"][i],
+                "alpha": mean["alpha"][i],
+                "entropy": mean["entropy"][i],
+                "q_mean": mean["q_mean"][i],
+                "lr": mean["lr"][i],
+            }
             if self.config.parseval_coef > 0:
                 row["parseval_penalty"] = mean["penalty_actor"][i] + mean["penalty_critic"][i]
             if self.config.sparse_width:
                 row["active_fraction"] = diag["active_fraction"][i]
             row.update({f"rank_{n}": int(ranks[n][i]) for n in self.layer_names})
             rows.append(row)
-            self.tb.write(self.step, {f"train/{k}/seed{seed}": v for k, v in row.items()
-                                      if k not in ("step", "seed")})
+            self.tb.write(
+                self.step,
+                {f"train/{k}/seed{seed}": v for k, v in row.items() if k not in ("step", "seed")},
+            )
         self.logs["train.csv"].write(rows)
 
     def export_policies(self) -> list[dict]:
@@ -308,13 +362,27 @@ class Run:
         for i, arrays in enumerate(self.export_policies()):
             policy = NumpyPolicy(arrays)
             for label in c.eval_dynamics:
-                rows = run_episodes(policy, c.task, label, c.eval_episodes,
-                                    seed=1_000_000 + self.seeds[i],
-                                    max_episode_steps=c.max_episode_steps)
+                rows = run_episodes(
+                    policy,
+                    c.task,
+                    label,
+                    c.eval_episodes,
+                    seed=1_000_000 + self.seeds[i],
+                    max_episode_steps=c.max_episode_steps,
+                )
                 self.logs["eval.csv"].write(
-                    [{"step": self.step, "seed": self.seeds[i], "dynamics": label,
-                      "episode": r["episode"], "return": r["return"], "length": r["length"]}
-                     for r in rows])
+                    [
+                        {
+                            "step": self.step,
+                            "seed": self.seeds[i],
+                            "dynamics": label,
+                            "episode": r["episode"],
+                            "return": r["return"],
+                            "length": r["length"],
+                        }
+                        for r in rows
+                    ]
+                )
                 mean_return = float(np.mean([r["return"] for r in rows]))
                 self.tb.write(self.step, {f"eval/{label}/return/seed{self.seeds[i]}": mean_return})
                 self.last_eval[self.seeds[i]] = mean_return
@@ -323,13 +391,19 @@ class Run:
         from adarl.policy import save as save_policy
 
         meta = {
-            "algo": self.config.algo, "seeds": self.seeds,
+            "algo": self.config.algo,
+            "seeds": self.seeds,
             "np_rngs": [rng.bit_generator.state for rng in self.np_rngs],
             "env_states": [_to_json(env.get_state()) for env in self.envs],
             "csv_offsets": {name: log.offset() for name, log in self.logs.items()},
         }
-        path = io.save_checkpoint(self.run_dir, self.step, self.checkpoint_arrays(), meta,
-                                  keep=self.config.keep_checkpoints)
+        path = io.save_checkpoint(
+            self.run_dir,
+            self.step,
+            self.checkpoint_arrays(),
+            meta,
+            keep=self.config.keep_checkpoints,
+        )
         for seed, arrays in zip(self.seeds, self.export_policies()):
             save_policy(path / f"policy_seed_{seed}.npz", arrays)
 
@@ -355,9 +429,10 @@ class Run:
             if t % c.checkpoint_every == 0 or t == c.total_steps:
                 self.save()
             if bar is not None and (t % 100 == 0 or t == c.total_steps):
-                recent = self.recent_returns[-10 * self.n:]
+                recent = self.recent_returns[-10 * self.n :]
                 bar.set_postfix_str(
-                    f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False)
+                    f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False
+                )
                 bar.update(t - bar.n)
         if bar is not None:
             bar.close()
@@ -369,8 +444,9 @@ def _progress(total: int, start: int, enabled: bool):
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, initial=start, unit="step", dynamic_ncols=True, file=sys.stderr,
-                smoothing=0.05)
+    return tqdm(
+        total=total, initial=start, unit="step", dynamic_ncols=True, file=sys.stderr, smoothing=0.05
+    )
 
 
 def _to_json(value):
@@ -397,8 +473,13 @@ def _from_json(value):
     return value
 
 
-def train(config: sac.SACConfig, run_dir: str | Path, resume: bool = False,
-          progress: bool = True, command: str = "") -> Path:
+def train(
+    config: sac.SACConfig,
+    run_dir: str | Path,
+    resume: bool = False,
+    progress: bool = True,
+    command: str = "",
+) -> Path:
     """Train (or resume) a SAC-family run into `run_dir`; returns the run folder."""
     run_dir = Path(run_dir)
     if resume:
@@ -413,17 +494,28 @@ def train(config: sac.SACConfig, run_dir: str | Path, resume: bool = False,
             run.open_logs(meta["csv_offsets"])
         else:  # killed before its first checkpoint: start again, keeping nothing half-done
             run.fresh()
-            run.open_logs({name: 0 for name in ("episodes.csv", "train.csv", "eval.csv",
-                                                 "truncations.csv")})
+            run.open_logs(
+                {name: 0 for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")}
+            )
     else:
         if run_dir.exists() and any(run_dir.iterdir()):
-            raise UsageError(f"run folder {run_dir} already exists and is not empty; "
-                             f"resume it with --resume {run_dir} or choose another --out")
+            raise UsageError(
+                f"run folder {run_dir} already exists and is not empty; "
+                f"resume it with --resume {run_dir} or choose another --out"
+            )
         run = Run(config, run_dir, progress)
         run_dir.mkdir(parents=True, exist_ok=True)
-        io.atomic_write_text(run_dir / "config.yaml", config_to_yaml(config, {
-            "format_version": io.RUN_FORMAT_VERSION, "adarl_version": __version__,
-            "command": command}))
+        io.atomic_write_text(
+            run_dir / "config.yaml",
+            config_to_yaml(
+                config,
+                {
+                    "format_version": io.RUN_FORMAT_VERSION,
+                    "adarl_version": __version__,
+                    "command": command,
+                },
+            ),
+        )
         run.fresh()
         run.open_logs(None)
     try:
@@ -449,6 +541,8 @@ def load_run_config(run_dir: str | Path) -> dict:
         raise UsageError(f"{path} is not a run config")
     version = values.get("format_version")
     if version != io.RUN_FORMAT_VERSION:
-        raise UsageError(f"{run_dir} was written with run format {version!r}; this adarl "
-                         f"({__version__}) reads format {io.RUN_FORMAT_VERSION}")
+        raise UsageError(
+            f"{run_dir} was written with run format {version!r}; this adarl "
+            f"({__version__}) reads format {io.RUN_FORMAT_VERSION}"
+        )
     return values

@@ -16,8 +16,16 @@ OBS, ACT = 5, 2
 
 
 def make(algo="adarl", **overrides):
-    config = sac.SACConfig(**{**SAC_FAMILY[algo], "algo": algo, "buffer_size": 512,
-                              "batch_size": 32, "update_every": 10, **overrides}).validate()
+    config = sac.SACConfig(
+        **{
+            **SAC_FAMILY[algo],
+            "algo": algo,
+            "buffer_size": 512,
+            "batch_size": 32,
+            "update_every": 10,
+            **overrides,
+        }
+    ).validate()
     spec = sac.make_spec(config, OBS, ACT, [-1.0, -2.0], [1.0, 2.0])
     return spec, sac.init_state(spec, jax.random.PRNGKey(0))
 
@@ -35,8 +43,9 @@ def np_mlp(layers, x, final_activation):
 def np_sample(actor, obs, noise, low, high):
     h = np_mlp(actor["trunk"], obs, True)
     mu = h @ np.asarray(actor["mu"]["w"]) + np.asarray(actor["mu"]["b"])
-    log_std = np.clip(h @ np.asarray(actor["log_std"]["w"]) + np.asarray(actor["log_std"]["b"]),
-                      -20, 2)
+    log_std = np.clip(
+        h @ np.asarray(actor["log_std"]["w"]) + np.asarray(actor["log_std"]["b"]), -20, 2
+    )
     std = np.exp(log_std)
     u = mu + std * noise
     logp = np.sum(-0.5 * ((u - mu) / std) ** 2 - log_std - 0.5 * np.log(2 * np.pi), axis=-1)
@@ -51,11 +60,13 @@ def np_q(critic, j, obs, act):
 
 def random_batch(seed, n=32):
     rng = np.random.default_rng(seed)
-    return {"obs": rng.normal(size=(n, OBS)).astype(np.float32),
-            "act": rng.uniform(-1, 1, size=(n, ACT)).astype(np.float32),
-            "rew": rng.normal(size=n).astype(np.float32),
-            "next_obs": rng.normal(size=(n, OBS)).astype(np.float32),
-            "done": (rng.uniform(size=n) < 0.2).astype(np.float32)}
+    return {
+        "obs": rng.normal(size=(n, OBS)).astype(np.float32),
+        "act": rng.uniform(-1, 1, size=(n, ACT)).astype(np.float32),
+        "rew": rng.normal(size=n).astype(np.float32),
+        "next_obs": rng.normal(size=(n, OBS)).astype(np.float32),
+        "done": (rng.uniform(size=n) < 0.2).astype(np.float32),
+    }
 
 
 def noise_of(key, n):
@@ -71,11 +82,14 @@ def test_critic_loss_matches_numpy(algo):
     loss, info = sac.critic_loss(spec, state["critic"], state, batch, key)
     low, high = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
     a2, logp2 = np_sample(state["actor"], batch["next_obs"], noise_of(key, 32), low, high)
-    q_targ = np.minimum(np_q(state["critic_target"], 0, batch["next_obs"], a2),
-                        np_q(state["critic_target"], 1, batch["next_obs"], a2))
+    q_targ = np.minimum(
+        np_q(state["critic_target"], 0, batch["next_obs"], a2),
+        np_q(state["critic_target"], 1, batch["next_obs"], a2),
+    )
     y = batch["rew"] + 0.99 * (1 - batch["done"]) * (q_targ - 0.2 * logp2)
-    expected = sum(np.mean((np_q(state["critic"], j, batch["obs"], batch["act"]) - y) ** 2)
-                   for j in range(2))
+    expected = sum(
+        np.mean((np_q(state["critic"], j, batch["obs"], batch["act"]) - y) ** 2) for j in range(2)
+    )
     assert float(loss) == pytest.approx(expected, rel=1e-4)
 
 
@@ -86,13 +100,16 @@ def test_actor_and_alpha_losses_match_numpy():
     loss, info = sac.actor_loss(spec, state["actor"], state, batch, key)
     low, high = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
     a, logp = np_sample(state["actor"], batch["obs"], noise_of(key, 32), low, high)
-    q = np.minimum(np_q(state["critic"], 0, batch["obs"], a), np_q(state["critic"], 1, batch["obs"], a))
+    q = np.minimum(
+        np_q(state["critic"], 0, batch["obs"], a), np_q(state["critic"], 1, batch["obs"], a)
+    )
     assert float(loss) == pytest.approx(np.mean(0.2 * logp - q), rel=1e-4)
     np.testing.assert_allclose(np.asarray(info["logp"]), logp, rtol=1e-4, atol=1e-4)
     log_alpha = np.log(0.3)
     expected = -np.mean(log_alpha * (logp + (-ACT)))
     assert float(sac.alpha_loss(jnp.asarray(log_alpha), jnp.asarray(logp), -ACT)) == pytest.approx(
-        expected, rel=1e-5)
+        expected, rel=1e-5
+    )
 
 
 def test_tanh_correction_is_stable_and_exact():
@@ -100,8 +117,11 @@ def test_tanh_correction_is_stable_and_exact():
     got = np.asarray(sac.tanh_log_det(u))
     assert np.all(np.isfinite(got))
     small = np.linspace(-3, 3, 7)[:, None]
-    np.testing.assert_allclose(np.asarray(sac.tanh_log_det(jnp.asarray(small))),
-                               np.log(1 - np.tanh(small[:, 0]) ** 2), rtol=1e-5)
+    np.testing.assert_allclose(
+        np.asarray(sac.tanh_log_det(jnp.asarray(small))),
+        np.log(1 - np.tanh(small[:, 0]) ** 2),
+        rtol=1e-5,
+    )
 
 
 def test_parseval_penalty_matches_numpy():
@@ -146,7 +166,7 @@ def test_sparse_layer_is_sparse_on_a_known_input():
 def filled_state(spec, state, n=300):
     rng = np.random.default_rng(0)
     builder = replay.ChunkBuilder(1, n, OBS, ACT)
-    for t in range(n):
+    for _ in range(n):
         builder.add(0, rng.normal(size=OBS), rng.uniform(-1, 1, ACT), rng.normal(), 0, None, False)
     builder.close(0, rng.normal(size=OBS))
     rows, count = builder.rows()
@@ -161,17 +181,24 @@ def test_masked_components_get_zero_gradient_and_stay_zero():
     assert np.all(w1[:, 7:] == 0) and np.any(w1[:, :7] != 0)
     batch = replay.sample(state["buffer"], jax.random.PRNGKey(1), 32)
     grads = jax.grad(lambda a: sac.actor_loss(spec, a, state, batch, jax.random.PRNGKey(2))[0])(
-        state["actor"])
+        state["actor"]
+    )
     g = grads["trunk"][1]
     assert np.all(np.asarray(g["w1"])[:, 7:] == 0) and np.all(np.asarray(g["w2"])[7:] == 0)
     step = jax.jit(functools.partial(sac.update_step, spec))
     for _ in range(20):
         state, _ = step(state)
-    for net in (state["actor"]["trunk"][1], jax.tree_util.tree_map(lambda a: a[1], state["critic"][1])):
+    for net in (
+        state["actor"]["trunk"][1],
+        jax.tree_util.tree_map(lambda a: a[1], state["critic"][1]),
+    ):
         assert np.all(np.asarray(net["w1"])[:, 7:] == 0)
         assert np.all(np.asarray(net["w2"])[7:] == 0)
     assert {k: int(v) for k, v in sac.rank_state(spec, state).items()} == {
-        "actor_1": 7, "q1_1": 7, "q2_1": 7}
+        "actor_1": 7,
+        "q1_1": 7,
+        "q2_1": 7,
+    }
 
 
 def test_truncation_keeps_targets_in_step_and_resets_optimisers():
@@ -187,8 +214,8 @@ def test_truncation_keeps_targets_in_step_and_resets_optimisers():
     shapes = lambda t: jax.tree_util.tree_map(jnp.shape, t)  # noqa: E731
     assert shapes(new["critic_target"]) == shapes(new["critic"])
     for q in range(2):
-        target = jax.tree_util.tree_map(lambda a: np.asarray(a)[q], new["critic_target"][1])
-        online = jax.tree_util.tree_map(lambda a: np.asarray(a)[q], new["critic"][1])
+        target = {k: np.asarray(v)[q] for k, v in new["critic_target"][1].items()}
+        online = {k: np.asarray(v)[q] for k, v in new["critic"][1].items()}
         r = int(ranks[f"q{q + 1}_1"])
         assert np.linalg.matrix_rank(target["w1"] @ target["w2"], tol=1e-5) == r
         np.testing.assert_array_equal(target["w1"], online["w1"])
@@ -199,7 +226,9 @@ def test_truncation_keeps_targets_in_step_and_resets_optimisers():
     assert float(sac.learning_rate(spec, new, 3e-3)) == 0.0
     assert float(sac.learning_rate(spec, state, 3e-3)) == pytest.approx(3e-3)
     # replay buffer and temperature carry over
-    assert new["buffer"] is state["buffer"] or np.array_equal(new["buffer"]["obs"], state["buffer"]["obs"])
+    assert new["buffer"] is state["buffer"] or np.array_equal(
+        new["buffer"]["obs"], state["buffer"]["obs"]
+    )
 
 
 def test_export_matches_the_jax_policy():
@@ -218,14 +247,22 @@ def test_export_matches_the_jax_policy():
     assert policy.n_params() < int(arrays["n_params_full"])
 
 
-@pytest.mark.parametrize("bad, message", [
-    ({"beta": 1.0}, "beta"), ({"beta": 0.0}, "beta"), ({"truncate_every": 0}, "truncate-every"),
-    ({"algo": "sac-fixed-rank", "rank": 65}, "rank"), ({"algo": "sac-fixed-rank", "rank": 0}, "rank"),
-    ({"rank_rule": "median"}, "rank rule"), ({"bottleneck": ("actor:2",)}, "actor:2"),
-    ({"algo": "nope"}, "algo"), ({"total_steps": -5}, "total-steps"),
-    ({"algo": "sac-parseval", "parseval_coef": 0.0}, "parseval-coef"),
-    ({"hidden": (64, 0)}, "hidden"),
-])
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        ({"beta": 1.0}, "beta"),
+        ({"beta": 0.0}, "beta"),
+        ({"truncate_every": 0}, "truncate-every"),
+        ({"algo": "sac-fixed-rank", "rank": 65}, "rank"),
+        ({"algo": "sac-fixed-rank", "rank": 0}, "rank"),
+        ({"rank_rule": "median"}, "rank rule"),
+        ({"bottleneck": ("actor:2",)}, "actor:2"),
+        ({"algo": "nope"}, "algo"),
+        ({"total_steps": -5}, "total-steps"),
+        ({"algo": "sac-parseval", "parseval_coef": 0.0}, "parseval-coef"),
+        ({"hidden": (64, 0)}, "hidden"),
+    ],
+)
 def test_bad_config_is_a_one_line_error(bad, message):
     from adarl.errors import UsageError
 

@@ -82,7 +82,8 @@ def test_truncation_is_the_best_rank_r_approximation(seed):
     w1, w2, mask = random_factors(seed)
     beta = 0.5
     new_w1, new_w2, new_mask, sigma, proposed = rank.truncate_bottleneck(
-        jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), beta)
+        jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), beta
+    )
     product = w1.astype(np.float64) @ w2
     u, s, vt = np.linalg.svd(product)
     r = max(1, min(64, np_cumulative_rule(s, beta)))
@@ -98,14 +99,16 @@ def test_truncation_is_the_best_rank_r_approximation(seed):
     assert np.all(s_new[r:] < 1e-3 * s[0])
     # components past r are exactly zero, and the factors are balanced: W1 = U√Σ, W2 = √ΣVᵀ
     assert np.all(np.asarray(new_w1)[:, r:] == 0) and np.all(np.asarray(new_w2)[r:] == 0)
-    np.testing.assert_allclose(np.linalg.norm(np.asarray(new_w1)[:, :r], axis=0) ** 2, s[:r],
-                               rtol=1e-4)
+    np.testing.assert_allclose(
+        np.linalg.norm(np.asarray(new_w1)[:, :r], axis=0) ** 2, s[:r], rtol=1e-4
+    )
 
 
 def test_truncation_changes_the_function_by_at_most_the_discarded_singular_value():
     w1, w2, mask = random_factors(7)
     new_w1, new_w2, new_mask, sigma, _ = rank.truncate_bottleneck(
-        jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), 0.6)
+        jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), 0.6
+    )
     r = int(new_mask.sum())
     x = np.random.default_rng(1).normal(size=(256, 64)).astype(np.float32)
     before = x @ w1 @ w2
@@ -118,7 +121,8 @@ def test_truncation_changes_the_function_by_at_most_the_discarded_singular_value
 def test_truncation_respects_the_current_rank():
     w1, w2, mask = random_factors(3, rank_=10)
     _, _, new_mask, sigma, proposed = rank.truncate_bottleneck(
-        jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), 0.999999)
+        jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), 0.999999
+    )
     assert int(new_mask.sum()) <= 10  # rank never grows
     assert np.all(np.asarray(sigma)[10:] < 1e-3)  # a rank-10 product has 10 non-zero values
 

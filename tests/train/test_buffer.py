@@ -39,8 +39,9 @@ def test_next_observation_including_episode_ends():
     buf, transitions = fill(1000, [5, 3, 9, 1, 4])
     batch = replay.sample(buf, jax.random.PRNGKey(0), 4096)
     expected = {float(r): (o, n) for o, n, r in transitions}
-    for obs, nxt, rew in zip(np.asarray(batch["obs"]), np.asarray(batch["next_obs"]),
-                             np.asarray(batch["rew"])):
+    for obs, nxt, rew in zip(
+        np.asarray(batch["obs"]), np.asarray(batch["next_obs"]), np.asarray(batch["rew"])
+    ):
         o, n = expected[float(rew)]
         np.testing.assert_array_equal(obs, o)
         np.testing.assert_array_equal(nxt, n)  # true final obs at episode ends, not the reset obs
@@ -63,8 +64,9 @@ def test_wrap_around_keeps_only_recent_valid_transitions():
     expected = {float(r): (o, n) for o, n, r in transitions}
     recent = {float(r) for _, _, r in transitions[-20:]}
     seen = set()
-    for obs, nxt, rew in zip(np.asarray(batch["obs"]), np.asarray(batch["next_obs"]),
-                             np.asarray(batch["rew"])):
+    for obs, nxt, rew in zip(
+        np.asarray(batch["obs"]), np.asarray(batch["next_obs"]), np.asarray(batch["rew"])
+    ):
         o, n = expected[float(rew)]
         np.testing.assert_array_equal(obs, o)
         np.testing.assert_array_equal(nxt, n)

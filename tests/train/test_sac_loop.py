@@ -23,8 +23,9 @@ def smoke_config(algo="adarl", **overrides):
 
 
 def csv_rows(run_dir, name, drop=("steps_per_s",)):
-    return [{k: v for k, v in row.items() if k not in drop}
-            for row in io.read_csv(Path(run_dir) / name)]
+    return [
+        {k: v for k, v in row.items() if k not in drop} for row in io.read_csv(Path(run_dir) / name)
+    ]
 
 
 def final_arrays(run_dir):
@@ -35,9 +36,20 @@ def final_arrays(run_dir):
 def test_pendulum_learns_for_every_seed(tmp_path):
     """Learning check on a small task: every seed of a vmapped run beats −400 within 10k steps."""
     config = sac.SACConfig(
-        algo="sac", task="gym:Pendulum-v1", dynamics="default", seeds=(0, 1), total_steps=10_000,
-        start_steps=1_000, update_after=1_000, max_episode_steps=200, buffer_size=10_000,
-        eval_every=10_000, eval_episodes=5, log_every=2_000, checkpoint_every=10_000)
+        algo="sac",
+        task="gym:Pendulum-v1",
+        dynamics="default",
+        seeds=(0, 1),
+        total_steps=10_000,
+        start_steps=1_000,
+        update_after=1_000,
+        max_episode_steps=200,
+        buffer_size=10_000,
+        eval_every=10_000,
+        eval_episodes=5,
+        log_every=2_000,
+        checkpoint_every=10_000,
+    )
     sac_loop.train(config, tmp_path / "run", progress=False)
     rows = io.read_csv(tmp_path / "run" / "eval.csv")
     for seed in (0, 1):
@@ -82,8 +94,11 @@ def test_several_seeds_match_training_each_alone(tmp_path):
     """Seeds vmapped together follow the same trajectory as each seed trained alone."""
     config = smoke_config(seeds=(0, 3), total_steps=1_000, checkpoint_every=1_000)
     sac_loop.train(config, tmp_path / "both", progress=False)
-    sac_loop.train(smoke_config(seeds=(3,), total_steps=1_000, checkpoint_every=1_000),
-                   tmp_path / "alone", progress=False)
+    sac_loop.train(
+        smoke_config(seeds=(3,), total_steps=1_000, checkpoint_every=1_000),
+        tmp_path / "alone",
+        progress=False,
+    )
     both = [r for r in csv_rows(tmp_path / "both", "episodes.csv") if r["seed"] == "3"]
     alone = csv_rows(tmp_path / "alone", "episodes.csv")
     # same environment stream: random warm-up actions are identical, so are early episodes
@@ -108,9 +123,23 @@ def test_new_run_refuses_a_non_empty_folder(tmp_path):
 
 def test_sigkill_then_resume_completes_without_duplicates(tmp_path):
     run_dir = tmp_path / "run"
-    cmd = [sys.executable, "-m", "adarl.cli.main", "train", "--preset", "smoke", "--algo", "sac",
-           "--total-steps", "3000", "--checkpoint-every", "500", "--out", str(run_dir),
-           "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "adarl.cli.main",
+        "train",
+        "--preset",
+        "smoke",
+        "--algo",
+        "sac",
+        "--total-steps",
+        "3000",
+        "--checkpoint-every",
+        "500",
+        "--out",
+        str(run_dir),
+        "--no-progress",
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 240
     while time.time() < deadline and len(io.checkpoint_dirs(run_dir)) < 2:
@@ -119,8 +148,19 @@ def test_sigkill_then_resume_completes_without_duplicates(tmp_path):
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not (run_dir / "DONE").exists()
-    resume = subprocess.run([sys.executable, "-m", "adarl.cli.main", "train", "--resume",
-                             str(run_dir), "--no-progress"], capture_output=True, text=True)
+    resume = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "adarl.cli.main",
+            "train",
+            "--resume",
+            str(run_dir),
+            "--no-progress",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert resume.returncode == 0, resume.stderr
     assert (run_dir / "DONE").read_text().strip() == "3000"
     episodes = io.read_csv(run_dir / "episodes.csv")
@@ -142,8 +182,9 @@ def test_resume_rejects_bad_folders(tmp_path):
 
 
 def test_checkpoint_holds_only_the_used_part_of_the_buffer(tmp_path):
-    config = smoke_config(algo="sac", total_steps=1_000, checkpoint_every=1_000,
-                          buffer_size=100_000)
+    config = smoke_config(
+        algo="sac", total_steps=1_000, checkpoint_every=1_000, buffer_size=100_000
+    )
     sac_loop.train(config, tmp_path / "run", progress=False)
     arrays = final_arrays(tmp_path / "run")
     assert arrays["buffer/obs"].shape[1] < 2_000

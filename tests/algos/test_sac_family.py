@@ -1,0 +1,56 @@
+"""Every SAC-family algorithm runs a few hundred steps for one and several seeds, and resumes."""
+
+import numpy as np
+import pytest
+
+from adarl.algos import SAC_FAMILY, sac
+from adarl.train import io, sac_loop
+
+ALGOS = {
+    "sac": {},
+    "sac-fixed-rank": {"rank": 7},
+    "sac-parseval": {},
+    "sac-sparse": {"sparse_width": 256},  # narrower than the default 1024 to keep the test fast
+    "adarl": {"truncate_every": 100},
+}
+
+
+class Crash(Exception):
+    pass
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_runs_and_resumes(algo, tmp_path, monkeypatch):
+    values = {**SAC_FAMILY[algo], **sac.PRESETS["smoke"], "algo": algo, "task": "hopper",
+              "seeds": (0, 1), "total_steps": 400, "start_steps": 100, "update_after": 100,
+              "update_every": 50, "checkpoint_every": 200, "eval_every": 400, "log_every": 100,
+              "batch_size": 32, "warmup_steps": 20, **ALGOS[algo]}
+    config = sac.SACConfig(**values)
+    original = sac_loop.Run.env_step
+
+    def crashing(self, actions):
+        original(self, actions)
+        if self.step == 300:
+            raise Crash
+
+    monkeypatch.setattr(sac_loop.Run, "env_step", crashing)
+    with pytest.raises(Crash):
+        sac_loop.train(config, tmp_path / "run", progress=False)
+    monkeypatch.setattr(sac_loop.Run, "env_step", original)
+    sac_loop.train(config, tmp_path / "run", resume=True, progress=False)
+    rows = io.read_csv(tmp_path / "run" / "train.csv")
+    assert [int(r["step"]) for r in rows] == [100, 100, 200, 200, 300, 300, 400, 400]
+    last = rows[-1]
+    assert np.isfinite(float(last["loss_q"])) and np.isfinite(float(last["loss_pi"]))
+    if algo == "sac-parseval":
+        assert float(last["parseval_penalty"]) > 0
+    if algo == "sac-sparse":
+        assert 0.0 < float(last["active_fraction"]) < 1.0
+    if algo == "sac-fixed-rank":
+        assert {last["rank_actor_1"], last["rank_q1_1"], last["rank_q2_1"]} == {"7"}
+    if algo == "adarl":
+        truncations = io.read_csv(tmp_path / "run" / "truncations.csv")
+        assert truncations and all(int(t["new_rank"]) <= int(t["old_rank"]) for t in truncations)
+    assert (tmp_path / "run" / "DONE").exists()
+    eval_rows = io.read_csv(tmp_path / "run" / "eval.csv")
+    assert {r["seed"] for r in eval_rows} == {"0", "1"}

@@ -1,0 +1,76 @@
+"""`adarl train` flags: config building, and one-line errors with exit code 2 for bad input."""
+
+import pytest
+
+from adarl.cli.main import main
+from adarl.cli.train import parse_int_list
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--algo", "ppo"], "unknown algo 'ppo'; allowed: sac, adarl"),
+        (["--beta", "1.5"], "beta must be in (0, 1)"),
+        (["--beta", "0"], "beta must be in (0, 1)"),
+        (["--truncate-every", "0"], "truncate-every must be > 0"),
+        (["--algo", "sac-fixed-rank", "--rank", "65"], "rank must be in 1..64"),
+        (["--algo", "sac-fixed-rank"], "sac-fixed-rank needs --rank"),
+        (["--rank-rule", "median"], "unknown rank rule 'median'"),
+        (["--bottleneck", "actor:5"], "bottleneck layer 'actor:5' does not exist"),
+        (["--total-steps", "0"], "total-steps must be > 0"),
+        (["--total-steps", "-3"], "total-steps must be > 0"),
+        (["--batch-size", "abc"], "--batch-size expects int"),
+        (["--seeds", "4-1"], "--seeds expects tuple[int,...]"),
+        (["--seeds", "0,0"], "seeds contain duplicates"),
+        (["--preset", "fast"], "unknown preset for adarl 'fast'"),
+        (["--task", "cartpole"], "cartpole"),
+        (["--dynamics", "wobbly"], "wobbly"),
+        (["--algo", "sac-parseval", "--parseval-coef", "-1"], "parseval-coef must be"),
+        (["--algo", "sac-sparse", "--sparse-width", "-1"], "sparse-width must be"),
+        (["--hidden", "64,0"], "hidden sizes must be"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_creates_nothing(argv, needle, tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["train", *argv, "--out", str(out), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert needle in err, err
+    assert err.count("\n") == 1  # one line
+    assert not out.exists()
+
+
+def test_unknown_flag_is_one_line(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "--learning-rate", "3"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "unrecognized arguments: --learning-rate" in err and err.count("\n") == 1
+
+
+def test_resume_takes_no_other_settings(tmp_path, capsys):
+    assert main(["train", "--resume", str(tmp_path), "--task", "walker2d"]) == 2
+    assert "drop --task" in capsys.readouterr().err
+
+
+def test_rnac_flags_do_not_apply_to_sac(capsys):
+    assert main(["train", "--algo", "sac", "--uncertainty-set", "ds"]) == 2
+    assert "does not apply to --algo sac" in capsys.readouterr().err
+
+
+def test_seed_lists():
+    assert parse_int_list("0-4") == (0, 1, 2, 3, 4)
+    assert parse_int_list("0,2,5") == (0, 2, 5)
+    assert parse_int_list("0-1,7") == (0, 1, 7)
+    for bad in ("", "a", "3-1"):
+        with pytest.raises(ValueError):
+            parse_int_list(bad)
+
+
+def test_help_lists_config_fields(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    for flag in ("--truncate-every", "--beta", "--rank-rule", "--parseval-coef", "--uncertainty-set"):
+        assert flag in out

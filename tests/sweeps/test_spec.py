@@ -1,0 +1,98 @@
+"""Sweep files: expansion into units, precedence of overrides, the shipped presets."""
+
+import pytest
+
+from adarl.errors import UsageError
+from adarl.sweeps import spec
+
+
+def _parse(**doc):
+    base = {"tasks": ["hopper"], "algos": ["sac"], "seeds": "0-1", "budget": 1000}
+    return spec.parse({**base, **doc}, source="t.yaml")
+
+
+def _flags(unit) -> dict:
+    args = list(unit.train_args)
+    return dict(zip(args[::2], args[1::2]))
+
+
+def test_units_are_task_x_entry_x_seed_group():
+    sweep = _parse(
+        tasks=["hopper", "walker2d"], algos=["adarl", "rnac"], seeds="0-4", seeds_per_unit=2
+    )
+    assert len(sweep.units) == 2 * 2 * 3
+    assert [u.id for u in sweep.units[:3]] == [
+        "hopper/adarl/seeds-0-1",
+        "hopper/adarl/seeds-2-3",
+        "hopper/adarl/seeds-4",
+    ]
+    assert _flags(sweep.units[0])["--seeds"] == "0,1"
+    assert len({u.id for u in sweep.units}) == len(sweep.units)
+
+
+def test_overrides_apply_where_the_field_exists_most_specific_last():
+    sweep = _parse(
+        tasks={"hopper": None, "walker2d": {"truncate_every": 700_000}},
+        algos=["sac", {"algo": "adarl", "truncate_every": 5000}, "rnac"],
+        budget={"hopper": "3e6", "walker2d": 2_000_000},
+        overrides={"truncate_every": 1_000_000, "eval_every": 20_000},
+    )
+    flags = {u.id: _flags(u) for u in sweep.units}
+    assert flags["hopper/sac/seeds-0-1"]["--truncate-every"] == "1000000"
+    assert flags["walker2d/sac/seeds-0-1"]["--truncate-every"] == "700000"
+    assert flags["walker2d/adarl_truncate_every-5000/seeds-0-1"]["--truncate-every"] == "5000"
+    assert "--truncate-every" not in flags["hopper/rnac/seeds-0-1"]  # not an RNAC field
+    assert flags["hopper/rnac/seeds-0-1"]["--eval-every"] == "20000"
+    assert flags["hopper/sac/seeds-0-1"]["--total-steps"] == "3000000"
+    assert flags["walker2d/rnac/seeds-0-1"]["--total-steps"] == "2000000"
+
+
+def test_grid_expands_into_labelled_entries():
+    sweep = _parse(algos=[{"algo": "sac-fixed-rank", "grid": {"rank": [1, 7]}}])
+    assert [u.label for u in sweep.units] == ["sac-fixed-rank_rank-1", "sac-fixed-rank_rank-7"]
+    assert spec.build_config(list(sweep.units[1].train_args)).rank == 7
+
+
+@pytest.mark.parametrize("doc, message", [
+    ({"algos": ["sac", "sac"]}, "both named 'sac'"),
+    ({"algos": [{"algo": "rnac", "rank": 3}]}, "not a config field of rnac"),
+    ({"overrides": {"seeds": [1]}}, "set by the spec's 'seeds' key"),
+    ({"seeds": "0-1,1"}, "duplicates"),
+    ({"budget": {"hopper": 10, "ant": 10}}, "not in tasks"),
+    ({"evaluation": {"eval_every": "often"}}, "--eval-every expects int"),
+    ({"dynamics": "stormy"}, "unknown dynamics"),
+])  # fmt: skip
+def test_bad_specs_name_the_problem(doc, message):
+    with pytest.raises(UsageError, match=message):
+        _parse(**doc)
+
+
+def test_presets_expand_to_the_documented_protocols():
+    units = {name: spec.load(name).units for name in spec.list_presets()}
+    assert set(units) == {
+        "smoke",
+        "paper-hopper-small",
+        "paper-table1",
+        "fixed-rank-sweep",
+        "rank-rule-ablation",
+    }
+    table1 = units["paper-table1"]
+    assert {(u.task, u.algo) for u in table1} == {
+        (t, a)
+        for t in ("hopper", "walker2d", "ant", "humanoid")
+        for a in ("adarl", "sac", "sac-parseval", "sac-sparse", "rnac")
+    }
+    assert all(u.seeds == (0, 1, 2, 3, 4) for u in table1)
+    walker = next(u for u in table1 if u.id == "walker2d/adarl/seeds-0-4")
+    assert _flags(walker)["--truncate-every"] == "700000"
+    ranks = sorted(
+        int(_flags(u)["--rank"]) for u in units["fixed-rank-sweep"] if u.task == "hopper"
+    )
+    assert ranks == [1, 2, 4, 7, 16, 32, 64]
+    assert {_flags(u)["--rank-rule"] for u in units["rank-rule-ablation"]} == {
+        "cumulative",
+        "ratio",
+    }
+    small = units["paper-hopper-small"]
+    assert len(small) == 5 and all(u.total_steps <= 200_000 for u in small)
+    assert [u.algo for u in units["smoke"]] == ["adarl", "sac"]
