@@ -135,7 +135,7 @@ def update_cost(width: int, rank: int, n: int = 200) -> float:
             act_high=spec.act_high,
             config=config,
         )
-    state = sac.init_state(spec, jax.random.PRNGKey(0))
+    state = jax.device_put(sac.init_state(spec, 0))
     from adarl.train import buffer as replay
 
     rows = {

@@ -258,46 +258,62 @@ def make_spec(config: SACConfig, obs_dim: int, act_dim: int, low, high) -> Spec:
     )
 
 
-def _initial_masks(layout: tuple, config: SACConfig) -> list:
-    return mlp.fixed_rank_masks(layout, config.rank) if config.rank else mlp.full_masks(layout)
-
-
-def init_state(spec: Spec, key: jnp.ndarray) -> dict:
-    """The complete training state of one seed (parameters, optimisers, buffer, keys, counters)."""
+def init_state(spec: Spec, seed: int, with_buffer: bool = True) -> dict:
+    """The complete training state of one seed (parameters, optimisers, buffer, keys, counters),
+    as NumPy arrays: parameters are drawn with NumPy's PCG64 seeded by `seed`; the update's JAX
+    key stream starts from `PRNGKey(seed)`. `with_buffer=False` leaves the (large) replay buffer
+    out, for callers that allocate it on the device directly."""
     c = spec.config
-    k_actor, k_mu, k_std, k_q1, k_q2, k_state = jax.random.split(key, 6)
+    rng = np.random.default_rng(seed)
     width = c.sparse_width or c.hidden[-1]
     init_rank = c.rank or None
+    head = (("dense", width, spec.act_dim),)
     actor = {
-        "trunk": mlp.init_layers(
-            k_actor, spec.actor, c.init, rank=init_rank, has_output_layer=False
-        ),
+        "trunk": mlp.init_layers(rng, spec.actor, c.init, rank=init_rank, has_output_layer=False),
         # the heads are output layers: gain 1 under orthogonal init
-        "mu": mlp.init_layers(k_mu, (("dense", width, spec.act_dim),), c.init)[0],
-        "log_std": mlp.init_layers(k_std, (("dense", width, spec.act_dim),), c.init)[0],
+        "mu": mlp.init_layers(rng, head, c.init)[0],
+        "log_std": mlp.init_layers(rng, head, c.init)[0],
     }
-    q1 = mlp.init_layers(k_q1, spec.critic, c.init, rank=init_rank)
-    q2 = mlp.init_layers(k_q2, spec.critic, c.init, rank=init_rank)
-    critic = jax.tree_util.tree_map(lambda a, b: jnp.stack([a, b]), q1, q2)
-    critic_masks = [
-        None if m is None else jnp.stack([m, m]) for m in _initial_masks(spec.critic, c)
-    ]
-    masks = {"actor": _initial_masks(spec.actor, c), "critic": critic_masks}
-    return {
+    q1 = mlp.init_layers(rng, spec.critic, c.init, rank=init_rank)
+    q2 = mlp.init_layers(rng, spec.critic, c.init, rank=init_rank)
+    critic = jax.tree_util.tree_map(lambda a, b: np.stack([a, b]), q1, q2)
+    actor_masks = mlp.rank_masks(spec.actor, init_rank)
+    critic_masks = [None if m is None else np.stack([m, m]) for m in mlp.rank_masks(spec.critic, init_rank)]
+    state = {
         "actor": actor,
         "critic": critic,
-        "critic_target": critic,
-        "masks": masks,
-        "log_alpha": jnp.log(jnp.asarray(c.alpha, jnp.float32)),
-        "opt_actor": _adam().init(actor),
-        "opt_critic": _adam().init(critic),
-        "opt_alpha": _adam().init(jnp.zeros((), jnp.float32)),
-        "buffer": replay.init_buffer(c.buffer_size, spec.obs_dim, spec.act_dim),
-        "key": k_state,
-        "n_updates": jnp.zeros((), jnp.int32),
-        "iteration_start": jnp.zeros((), jnp.int32),  # update count at the last truncation
-        "n_truncations": jnp.zeros((), jnp.int32),
+        "critic_target": jax.tree_util.tree_map(np.copy, critic),
+        "masks": {"actor": actor_masks, "critic": critic_masks},
+        "log_alpha": np.log(np.float32(c.alpha)),
+        "opt_actor": _adam_zeros(actor),
+        "opt_critic": _adam_zeros(critic),
+        "opt_alpha": _adam_zeros(np.zeros((), np.float32)),
+        "key": update_key(seed),
+        "n_updates": np.zeros((), np.int32),
+        "iteration_start": np.zeros((), np.int32),  # update count at the last truncation
+        "n_truncations": np.zeros((), np.int32),
     }
+    if with_buffer:
+        state["buffer"] = replay.init_buffer(c.buffer_size, spec.obs_dim, spec.act_dim)
+    return state
+
+
+def update_key(seed: int) -> np.ndarray:
+    """Raw threefry key of the update stream: the same bits as `jax.random.PRNGKey(seed)`."""
+    return np.array([0, seed], np.uint32)
+
+
+def action_key(seed: int) -> np.ndarray:
+    """Raw threefry key of the action-sampling stream, distinct from the update stream's."""
+    return np.array([1, seed], np.uint32)
+
+
+def _adam_zeros(params):
+    """A fresh Adam state, built in NumPy (equal to `_adam().init(params)`)."""
+    zeros = jax.tree_util.tree_map(np.zeros_like, params)
+    return optax.ScaleByAdamState(
+        count=np.zeros((), np.int32), mu=zeros, nu=jax.tree_util.tree_map(np.copy, zeros)
+    )
 
 
 def _adam():
@@ -305,10 +321,10 @@ def _adam():
     return optax.scale_by_adam(b1=0.9, b2=0.999, eps=1e-8)
 
 
-def actor_forward(spec: Spec, actor: dict, masks: list, obs: jnp.ndarray):
-    """Mean and clamped log-std of the pre-squash Gaussian."""
+def actor_features(spec: Spec, actor: dict, masks: list, obs: jnp.ndarray):
+    """The actor trunk's output (the sparse code for sac-sparse), read by both heads."""
     c = spec.config
-    h = mlp.apply_layers(
+    return mlp.apply_layers(
         actor["trunk"],
         masks,
         obs,
@@ -318,6 +334,11 @@ def actor_forward(spec: Spec, actor: dict, masks: list, obs: jnp.ndarray):
         sparse_eta=c.sparse_eta,
         sparse_lam=c.sparse_lambda,
     )
+
+
+def actor_forward(spec: Spec, actor: dict, masks: list, obs: jnp.ndarray):
+    """Mean and clamped log-std of the pre-squash Gaussian."""
+    h = actor_features(spec, actor, masks, obs)
     mu = h @ actor["mu"]["w"] + actor["mu"]["b"]
     log_std = jnp.clip(h @ actor["log_std"]["w"] + actor["log_std"]["b"], LOG_STD_MIN, LOG_STD_MAX)
     return mu, log_std

@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     sweep = spec.load(args.spec)
     out = Path(args.out) if args.out else Path("sweeps") / sweep.name
     manifest.check_compatible(manifest.read(out), sweep, out)
+    runner.check_existing_runs(sweep, out)
     if args.dry_run:
         where = (
             f"Ray ({args.address or 'a local instance'})"

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 ACTIVATIONS = {"relu": jax.nn.relu, "tanh": jnp.tanh}
 INITS = ("torch", "orthogonal")
@@ -50,23 +51,32 @@ def make_layout(
     return tuple(layout)
 
 
-def _torch_uniform(key, shape, fan_in, dtype):
+def _torch_uniform(rng: np.random.Generator, shape, fan_in):
     """PyTorch nn.Linear default: U(−1/√fan_in, 1/√fan_in) (weights and biases)."""
-    bound = 1.0 / jnp.sqrt(fan_in)
-    return jax.random.uniform(key, shape, dtype, -bound, bound)
+    bound = 1.0 / np.sqrt(fan_in)
+    return rng.uniform(-bound, bound, size=shape).astype(np.float32)
+
+
+def _orthogonal(rng: np.random.Generator, shape, gain):
+    """Orthogonal matrix (rows or columns orthonormal) times `gain`, as torch.nn.init.orthogonal_."""
+    rows, cols = shape
+    a = rng.normal(size=(max(rows, cols), min(rows, cols)))
+    q, r = np.linalg.qr(a)
+    q *= np.sign(np.diag(r))
+    q = q if rows >= cols else q.T
+    return (gain * q).astype(np.float32)
 
 
 def init_layers(
-    key,
+    rng: np.random.Generator,
     layout: tuple,
     init: str = "torch",
     gain: float = 2.0**0.5,
     out_gain: float = 1.0,
     rank: int | None = None,
     has_output_layer: bool = True,
-    dtype=jnp.float32,
 ) -> list[dict]:
-    """Initialise parameters for `layout`.
+    """Initialise parameters for `layout` with NumPy (no XLA compilation at start-up).
 
     `torch`: PyTorch's nn.Linear defaults (what Spinning Up, and so the paper, uses); a bottleneck
     of rank r is nn.Linear(n_in, r, bias=False) then nn.Linear(r, n_out). `orthogonal`:
@@ -77,36 +87,34 @@ def init_layers(
     if init not in INITS:
         raise ValueError(f"unknown init {init!r}; allowed: {', '.join(INITS)}")
     params = []
-    keys = jax.random.split(key, len(layout))
     last = max(i for i, spec in enumerate(layout) if spec[0] != "sparse")
-    for i, (spec, k) in enumerate(zip(layout, keys)):
-        k1, k2, k3 = jax.random.split(k, 3)
+    for i, spec in enumerate(layout):
         g = out_gain if (has_output_layer and i == last) else gain
         if spec[0] == "dense":
             _, n_in, n_out = spec
             if init == "torch":
-                w = _torch_uniform(k1, (n_in, n_out), n_in, dtype)
-                b = _torch_uniform(k2, (n_out,), n_in, dtype)
+                w = _torch_uniform(rng, (n_in, n_out), n_in)
+                b = _torch_uniform(rng, (n_out,), n_in)
             else:
-                w = jax.nn.initializers.orthogonal(g)(k1, (n_in, n_out), dtype)
-                b = jnp.zeros((n_out,), dtype)
+                w = _orthogonal(rng, (n_in, n_out), g)
+                b = np.zeros((n_out,), np.float32)
             params.append({"w": w, "b": b})
         elif spec[0] == "bottleneck":
             _, n_in, width, n_out = spec
             r = width if rank is None else rank
             if init == "torch":
-                w1 = _torch_uniform(k1, (n_in, width), n_in, dtype)
-                w2 = _torch_uniform(k2, (width, n_out), r, dtype)
-                b = _torch_uniform(k3, (n_out,), r, dtype)
+                w1 = _torch_uniform(rng, (n_in, width), n_in)
+                w2 = _torch_uniform(rng, (width, n_out), r)
+                b = _torch_uniform(rng, (n_out,), r)
             else:  # orthogonal product with the layer's gain, split evenly between the factors
-                w1 = jax.nn.initializers.orthogonal(g**0.5)(k1, (n_in, width), dtype)
-                w2 = jax.nn.initializers.orthogonal(g**0.5)(k2, (width, n_out), dtype)
-                b = jnp.zeros((n_out,), dtype)
-            keep = (jnp.arange(width) < r).astype(dtype)
+                w1 = _orthogonal(rng, (n_in, width), g**0.5)
+                w2 = _orthogonal(rng, (width, n_out), g**0.5)
+                b = np.zeros((n_out,), np.float32)
+            keep = (np.arange(width) < r).astype(np.float32)
             params.append({"w1": w1 * keep[None, :], "w2": w2 * keep[:, None], "b": b})
         else:  # sparse-coding dictionary, initialised at the identity: the first step is then a
             _, n = spec  # pure soft threshold, ReLU(x − ηλ), and never denser than its input
-            params.append({"d": jnp.eye(n, dtype=dtype)})
+            params.append({"d": np.eye(n, dtype=np.float32)})
     return params
 
 
@@ -142,15 +150,13 @@ def sparse_coding(x, d, eta: float, lam: float):
     return jax.nn.relu(x + eta * (x @ d - (x @ d.T) @ d) - eta * lam)
 
 
-def full_masks(layout: tuple, dtype=jnp.float32) -> list:
-    """Rank masks at full width for every bottleneck of `layout` (None elsewhere)."""
-    return [jnp.ones((spec[2],), dtype) if spec[0] == "bottleneck" else None for spec in layout]
-
-
-def fixed_rank_masks(layout: tuple, rank: int, dtype=jnp.float32) -> list:
-    """Rank masks keeping the first `rank` components of every bottleneck."""
+def rank_masks(layout: tuple, rank: int | None = None) -> list:
+    """Rank masks keeping the first `rank` (default: all) components of every bottleneck of
+    `layout` (None for other layers)."""
     return [
-        (jnp.arange(spec[2]) < rank).astype(dtype) if spec[0] == "bottleneck" else None
+        (np.arange(spec[2]) < (rank or spec[2])).astype(np.float32)
+        if spec[0] == "bottleneck"
+        else None
         for spec in layout
     ]
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import dataclasses
 import fcntl
 import json
 import os
@@ -77,6 +78,25 @@ def plan_text(sweep: Sweep, out: Path, where: str) -> str:
     return "\n".join(lines)
 
 
+def check_existing_runs(sweep: Sweep, out: Path) -> None:
+    """A one-line UsageError if a unit's run folder already holds a run trained with other
+    settings (the manifest aside, a sweep never resumes or skips someone else's run)."""
+    from adarl.cli.train import config_from_run
+
+    for unit in sweep.units:
+        run_dir = out / unit.id
+        if not (run_dir / "config.yaml").exists():
+            continue
+        _, found = config_from_run(run_dir)
+        for f in dataclasses.fields(unit.config):
+            old, new = getattr(found, f.name, None), getattr(unit.config, f.name)
+            if old != new:
+                raise UsageError(
+                    f"{run_dir} holds a run with other settings ({f.name}: {old!r} there, "
+                    f"{new!r} in this sweep); choose another --out"
+                )
+
+
 # ----------------------------------------------------------------------------- run
 @contextlib.contextmanager
 def sweep_lock(out: Path):
@@ -114,6 +134,7 @@ class SweepRun:
         self.width = max(len(u.id) for u in sweep.units)
         self.in_flight: dict[cf.Future, tuple[Unit, int]] = {}
         self.tries: Counter[str] = Counter()
+        self.start_step: dict[str, int] = {}  # step each running attempt started from
         self.skipped = 0
 
     # ------------------------------------------------------------------ loop
@@ -205,6 +226,7 @@ class SweepRun:
                 step=marker.get("step", 0),
                 started=marker.get("time"),
             )
+            self.start_step[unit.id] = int(marker.get("step", 0))
             how = {
                 "fresh": "from scratch",
                 "done": "already done",
@@ -267,8 +289,9 @@ class SweepRun:
             if self.manifest.unit(unit.id)["status"] != "running":
                 continue
             found = last_train_row(self.out / unit.id / "train.csv")
-            if found is None:
-                self.line(unit, "running", "starting (compiling, filling the buffer)")
+            start = self.start_step.get(unit.id, 0)
+            if found is None or found[0] <= start:  # nothing logged by this attempt yet
+                self.line(unit, "running", f"starting at step {start:,} (compiling, loading)")
                 continue
             step, rate = found
             self.manifest.update(unit.id, step=step, steps_per_s=rate)
@@ -358,7 +381,7 @@ def _last_line(path: Path) -> str:
             lines = [s.strip() for s in f.read().decode(errors="replace").splitlines()]
     except OSError:
         return ""
-    lines = [s for s in lines if s and not s.startswith("===")]
+    lines = [s for s in lines if s and not s.startswith(("===", "$ "))]  # the worker's own
     return _one_line(lines[-1]) if lines else ""
 
 

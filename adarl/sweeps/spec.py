@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
@@ -52,6 +52,7 @@ class Unit:
     seeds: tuple[int, ...]
     total_steps: int
     train_args: tuple[str, ...]
+    config: object = field(compare=False, repr=False)  # the SACConfig / RNACConfig it trains
 
     @property
     def flat_id(self) -> str:
@@ -136,10 +137,14 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
     _check_keys(evaluation, EVAL_KEYS, f"{where}: evaluation")
     base.update(evaluation)
     overrides = _overrides(doc.get("overrides"), f"{where}: overrides", all_fields)
+    entries = _algo_entries(doc["algos"], where, fields, ALGOS)
+    presets = _family_presets()
     preset = doc.get("preset")
     if preset is not None:
         preset = _string(preset, f"{where}: preset")
-    entries = _algo_entries(doc["algos"], where, fields, ALGOS)
+        known = sorted({p for family in presets.values() for p in family})
+        if preset not in known:
+            raise UsageError(f"{where}: unknown preset {preset!r}; allowed: {', '.join(known)}")
 
     groups = [tuple(seeds[i : i + group]) for i in range(0, len(seeds), group)]
     units = []
@@ -150,6 +155,8 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
             values.update({k: v for k, v in overrides.items() if k in family_fields})
             values.update({k: v for k, v in task_overrides.items() if k in family_fields})
             values.update(entry["fields"])
+            # the file's preset reaches the entries without their own, where the algorithm has it
+            family_preset = preset if preset in presets[_family(entry["algo"])] else None
             for seed_group in groups:
                 units.append(
                     _unit(
@@ -157,7 +164,7 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
                         entry,
                         seed_group,
                         budget[task],
-                        entry["preset"] or preset,
+                        entry["preset"] or family_preset,
                         values,
                         where,
                         envs,
@@ -206,6 +213,7 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
         seeds=tuple(seeds),
         total_steps=int(total_steps),
         train_args=tuple(args),
+        config=config,
     )
 
 
@@ -229,12 +237,16 @@ def _family(algo: str) -> str:
 
 
 def _family_fields() -> dict[str, set[str]]:
-    from adarl.cli.train import _config_classes
+    from adarl.algos import rnac, sac
 
-    return {
-        family: {f.name for f in dataclasses.fields(cls)}
-        for family, cls in _config_classes().items()
-    }
+    classes = {"sac": sac.SACConfig, "rnac": rnac.RNACConfig}
+    return {family: {f.name for f in dataclasses.fields(cls)} for family, cls in classes.items()}
+
+
+def _family_presets() -> dict[str, set[str]]:
+    from adarl.algos import rnac, sac
+
+    return {"sac": set(sac.PRESETS), "rnac": set(rnac.PRESETS)}
 
 
 def _check_keys(mapping: dict, allowed, where: str) -> None:
@@ -262,7 +274,10 @@ def _tasks(value, where: str, all_fields: set[str]) -> dict[str, dict]:
         raise UsageError(f"{where}: tasks is empty, so the sweep has nothing to run")
     tasks = {}
     for task, overrides in value.items():
-        name = get_task(str(task)).name
+        try:
+            name = get_task(str(task)).name
+        except UsageError as exc:
+            raise UsageError(f"{where}: {exc}") from None
         tasks[name] = _overrides(overrides, f"{where}: tasks: {name}", all_fields)
     return tasks
 
@@ -372,7 +387,10 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
         raise UsageError(
             f"{where}: an algos entry is a name or a mapping with an `algo` key, got {item!r}"
         )
-    algo = check_choice("algo", str(item["algo"]), algos)
+    try:
+        algo = check_choice("algo", str(item["algo"]), algos)
+    except UsageError as exc:
+        raise UsageError(f"{where}: {exc}") from None
     here = f"{where}: algos entry {algo!r}"
     allowed = fields[_family(algo)]
     settings = {k: v for k, v in item.items() if k not in ENTRY_KEYS}

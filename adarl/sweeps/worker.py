@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.parent is not None and not _die_with_parent(args.parent):
         print("the sweep that started this unit is gone; not starting", flush=True)
         return 1
-    lock = _take_lock(Path(args.lock))
+    lock = _take_lock(Path(args.lock))  # held until this process ends
     if lock is None:
         print(
             f"{args.run_dir} is being trained by another process (lock {args.lock} is held)",

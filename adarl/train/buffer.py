@@ -25,14 +25,24 @@ REDRAWS = 4
 
 
 def init_buffer(capacity: int, obs_dim: int, act_dim: int) -> dict:
+    """An empty buffer (NumPy arrays; they move to the device with the rest of the state)."""
     return {
-        "obs": jnp.zeros((capacity, obs_dim), jnp.float32),
-        "act": jnp.zeros((capacity, act_dim), jnp.float32),
-        "rew": jnp.zeros((capacity,), jnp.float32),
-        "term": jnp.zeros((capacity,), jnp.uint8),
-        "valid": jnp.zeros((capacity,), jnp.uint8),
-        "ptr": jnp.zeros((), jnp.int32),  # where the next chunk starts (its provisional row)
-        "size": jnp.zeros((), jnp.int32),  # rows written, excluding the provisional one
+        "obs": np.zeros((capacity, obs_dim), np.float32),
+        "act": np.zeros((capacity, act_dim), np.float32),
+        "rew": np.zeros((capacity,), np.float32),
+        "term": np.zeros((capacity,), np.uint8),
+        "valid": np.zeros((capacity,), np.uint8),
+        "ptr": np.zeros((), np.int32),  # where the next chunk starts (its provisional row)
+        "size": np.zeros((), np.int32),  # rows written, excluding the provisional one
+    }
+
+
+def empty_buffers(n_seeds: int, capacity: int, obs_dim: int, act_dim: int) -> dict:
+    """`n_seeds` empty buffers stacked on axis 0, allocated on the device directly."""
+    template = init_buffer(1, obs_dim, act_dim)
+    return {
+        k: jnp.zeros((n_seeds, capacity, *v.shape[1:]) if v.ndim else (n_seeds,), v.dtype)
+        for k, v in template.items()
     }
 
 

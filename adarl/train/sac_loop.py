@@ -48,7 +48,6 @@ BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
 class Compiled:
     """The jitted, seed-vmapped functions of one run."""
 
-    init: callable
     collect: callable  # append rows only (before update_after)
     collect_and_update: callable
     act: callable
@@ -73,24 +72,11 @@ def compile_functions(spec: sac.Spec) -> Compiled:
         out = {}
         if c.sparse_width:
             obs = replay.sample(state["buffer"], jax.random.PRNGKey(0), c.batch_size)["obs"]
-            layers = state["actor"]["trunk"]
-            from adarl.nets import mlp
-
-            h = mlp.apply_layers(
-                layers,
-                state["masks"]["actor"],
-                obs,
-                spec.actor,
-                c.activation,
-                final_activation=True,
-                sparse_eta=c.sparse_eta,
-                sparse_lam=c.sparse_lambda,
-            )
+            h = sac.actor_features(spec, state["actor"], state["masks"]["actor"], obs)
             out["active_fraction"] = jnp.mean(h > 0)
         return out
 
     return Compiled(
-        init=jax.jit(vmap(functools.partial(sac.init_state, spec))),
         collect=jax.jit(vmap(append), donate_argnums=(0,)),
         collect_and_update=jax.jit(vmap(update), donate_argnums=(0,)),
         act=jax.jit(vmap(act)),
@@ -144,10 +130,12 @@ class Run:
     # ------------------------------------------------------------------ state
     def fresh(self) -> None:
         c = self.config
-        keys = jnp.stack([jax.random.PRNGKey(s) for s in self.seeds])
-        split = jax.vmap(lambda k: jax.random.split(k, 2))(keys)
-        self.state = self.fns.init(split[:, 0])
-        self.act_keys = split[:, 1]
+        states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
+        self.state = jax.device_put(jax.tree_util.tree_map(lambda *a: np.stack(a), *states))
+        self.state["buffer"] = replay.empty_buffers(
+            self.n, c.buffer_size, self.spec.obs_dim, self.spec.act_dim
+        )
+        self.act_keys = jnp.asarray(np.stack([sac.action_key(s) for s in self.seeds]))
         self.np_rngs = [np.random.default_rng(s) for s in self.seeds]
         self.step = 0
         self.obs = np.zeros((self.n, self.spec.obs_dim), np.float32)
@@ -156,7 +144,6 @@ class Run:
         for i, env in enumerate(self.envs):
             o, _ = env.reset(seed=self.seeds[i])
             self.obs[i] = o
-        del c
 
     def checkpoint_arrays(self) -> dict[str, np.ndarray]:
         state = jax.device_get(self.state)
@@ -174,19 +161,22 @@ class Run:
         return arrays
 
     def restore(self, arrays: dict, meta: dict) -> None:
-        template = jax.eval_shape(self.fns.init, jnp.zeros((self.n, 2), jnp.uint32))
-        template = jax.tree_util.tree_map(lambda s: np.zeros(s.shape, s.dtype), template)
-        buf_template = template.pop("buffer")
-        state = io.unflatten_tree(template, arrays, "state")
-        buf = {}
+        c = self.config
+        one = sac.init_state(self.spec, 0, with_buffer=False)
+        template = jax.tree_util.tree_map(
+            lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
+        )
+        state = jax.device_put(io.unflatten_tree(template, arrays, "state"))
+        buf = replay.empty_buffers(self.n, c.buffer_size, self.spec.obs_dim, self.spec.act_dim)
         for k in BUFFER_ROW_KEYS:
-            full = buf_template[k]
             saved = arrays[f"buffer/{k}"]
-            full[:, : saved.shape[1]] = saved
-            buf[k] = full
-        buf["ptr"], buf["size"] = arrays["buffer/ptr"], arrays["buffer/size"]
+            if saved.shape[0] != self.n or saved.shape[2:] != buf[k].shape[2:]:
+                raise UsageError(f"checkpoint buffer {k!r} has shape {saved.shape}; expected "
+                                 f"{self.n} seeds and rows of shape {buf[k].shape[2:]}")
+            buf[k] = buf[k].at[:, : saved.shape[1]].set(saved)
+        buf["ptr"], buf["size"] = jnp.asarray(arrays["buffer/ptr"]), jnp.asarray(arrays["buffer/size"])
         state["buffer"] = buf
-        self.state = jax.tree_util.tree_map(jnp.asarray, state)
+        self.state = state
         self.act_keys = jnp.asarray(arrays["host/act_keys"])
         self.obs = arrays["host/obs"].astype(np.float32)
         self.ep_return = arrays["host/ep_return"].copy()

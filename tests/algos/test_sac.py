@@ -27,7 +27,7 @@ def make(algo="adarl", **overrides):
         }
     ).validate()
     spec = sac.make_spec(config, OBS, ACT, [-1.0, -2.0], [1.0, 2.0])
-    return spec, sac.init_state(spec, jax.random.PRNGKey(0))
+    return spec, jax.device_put(sac.init_state(spec, 0))
 
 
 def np_mlp(layers, x, final_activation):

@@ -96,3 +96,11 @@ def test_presets_expand_to_the_documented_protocols():
     small = units["paper-hopper-small"]
     assert len(small) == 5 and all(u.total_steps <= 200_000 for u in small)
     assert [u.algo for u in units["smoke"]] == ["adarl", "sac"]
+
+
+def test_the_files_preset_reaches_the_algorithms_that_have_it():
+    sweep = _parse(algos=["sac", "rnac", {"algo": "rnac", "preset": "ipm"}], preset="quickstart")
+    presets = [_flags(u).get("--preset") for u in sweep.units]
+    assert presets == ["quickstart", None, "ipm"]
+    with pytest.raises(UsageError, match="unknown preset 'quikstart'"):
+        _parse(preset="quikstart")
