@@ -198,7 +198,7 @@ def main() -> int:
         except ImportError:
             print("RNAC: bench/throughput_rnac.py not found")
         else:
-            throughput_rnac.report(steps=args.steps)
+            throughput_rnac.report(steps=max(args.steps, 4096))
     return 0
 
 

@@ -143,6 +143,16 @@ def update_seconds(seeds: int) -> float:
     return (time.perf_counter() - start) / 3
 
 
+def report(steps: int = 20480, task: str = "hopper") -> None:
+    """RNAC lines for bench/throughput.py: steps/s of `ipm` and `ds`, and the DS cost factor."""
+    rnac.ShadowSimulator = CountingShadow
+    rates = {}
+    for name in ("ipm", "ds"):
+        rates[name] = train_throughput(task, steps, 1, uncertainty_set=name)["per_seed"]
+        print(f"rnac   {name:3s} 1 seed: {rates[name]:8.1f} steps/s")
+    print(f"       double sampling costs {rates['ipm'] / rates['ds']:.2f}x the time of ipm")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--task", default="hopper")

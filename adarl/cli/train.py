@@ -97,10 +97,24 @@ def parse_value(name: str, text: str, type_text: str):
         if t == "tuple[int,...]":
             return parse_int_list(text)
         if t == "tuple[str,...]":
-            return tuple(s for s in text.split(",") if s)
+            return split_specs(text)
     except ValueError:
         raise UsageError(f"{flag} expects {t}, got {text!r}") from None
     raise UsageError(f"{flag}: unsupported field type {t}")
+
+
+def split_specs(text: str) -> tuple[str, ...]:
+    """Comma-separated items, where a `key=value` piece without its own `name:` prefix belongs to
+    the item before it: 'nominal,fixed:a=1,b=2' -> ('nominal', 'fixed:a=1,b=2')."""
+    items: list[str] = []
+    for part in text.split(","):
+        if not part:
+            continue
+        if items and "=" in part and ":" not in part and ":" in items[-1]:
+            items[-1] += "," + part
+        else:
+            items.append(part)
+    return tuple(items)
 
 
 def parse_int_list(text: str) -> tuple[int, ...]:

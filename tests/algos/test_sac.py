@@ -174,26 +174,25 @@ def filled_state(spec, state, n=300):
     return dict(state, buffer=replay.append_rows(state["buffer"], rows, count[0]))
 
 
-def test_masked_components_get_zero_gradient_and_stay_zero():
-    spec, state = make("sac-fixed-rank", rank=7)
+@pytest.fixture(scope="module")
+def adarl_run():
+    """An AdaRL learner after 30 updates, with its jitted update (compiled once for the module)."""
+    spec, state = make("adarl", beta=0.6)
     state = filled_state(spec, state)
-    w1 = np.asarray(state["actor"]["trunk"][1]["w1"])
-    assert np.all(w1[:, 7:] == 0) and np.any(w1[:, :7] != 0)
-    batch = replay.sample(state["buffer"], jax.random.PRNGKey(1), 32)
-    grads = jax.grad(lambda a: sac.actor_loss(spec, a, state, batch, jax.random.PRNGKey(2))[0])(
-        state["actor"]
-    )
-    g = grads["trunk"][1]
-    assert np.all(np.asarray(g["w1"])[:, 7:] == 0) and np.all(np.asarray(g["w2"])[7:] == 0)
     step = jax.jit(functools.partial(sac.update_step, spec))
-    for _ in range(20):
+    for _ in range(30):
         state, _ = step(state)
-    for net in (
-        state["actor"]["trunk"][1],
-        jax.tree_util.tree_map(lambda a: a[1], state["critic"][1]),
-    ):
-        assert np.all(np.asarray(net["w1"])[:, 7:] == 0)
-        assert np.all(np.asarray(net["w2"])[7:] == 0)
+    return spec, step, state
+
+
+def test_fixed_rank_starts_with_exactly_zero_components():
+    spec, state = make("sac-fixed-rank", rank=7)
+    for w1, w2 in [
+        (state["actor"]["trunk"][1]["w1"], state["actor"]["trunk"][1]["w2"]),
+        (state["critic"][1]["w1"][1], state["critic"][1]["w2"][1]),
+    ]:
+        assert np.all(np.asarray(w1)[:, 7:] == 0) and np.any(np.asarray(w1)[:, :7] != 0)
+        assert np.all(np.asarray(w2)[7:] == 0)
     assert {k: int(v) for k, v in sac.rank_state(spec, state).items()} == {
         "actor_1": 7,
         "q1_1": 7,
@@ -201,12 +200,31 @@ def test_masked_components_get_zero_gradient_and_stay_zero():
     }
 
 
-def test_truncation_keeps_targets_in_step_and_resets_optimisers():
-    spec, state = make("adarl", beta=0.6)
-    state = filled_state(spec, state)
-    step = jax.jit(functools.partial(sac.update_step, spec))
-    for _ in range(30):
+def test_masked_components_get_zero_gradient_and_stay_zero(adarl_run):
+    spec, step, state = adarl_run
+    state, _ = sac.truncate(spec, state)
+    ranks = {k: int(v) for k, v in sac.rank_state(spec, state).items()}
+    r = ranks["actor_1"]
+    batch = replay.sample(state["buffer"], jax.random.PRNGKey(1), 32)
+    grads = jax.grad(lambda a: sac.actor_loss(spec, a, state, batch, jax.random.PRNGKey(2))[0])(
+        state["actor"]
+    )
+    g = grads["trunk"][1]
+    assert np.all(np.asarray(g["w1"])[:, r:] == 0) and np.all(np.asarray(g["w2"])[r:] == 0)
+    assert np.any(np.asarray(g["w1"])[:, :r] != 0)
+    for _ in range(20):
         state, _ = step(state)
+    for name, net in [
+        ("actor_1", state["actor"]["trunk"][1]),
+        ("q2_1", {k: v[1] for k, v in state["critic"][1].items()}),
+    ]:
+        assert np.all(np.asarray(net["w1"])[:, ranks[name] :] == 0)
+        assert np.all(np.asarray(net["w2"])[ranks[name] :] == 0)
+    assert {k: int(v) for k, v in sac.rank_state(spec, state).items()} == ranks
+
+
+def test_truncation_keeps_targets_in_step_and_resets_optimisers(adarl_run):
+    spec, _, state = adarl_run
     new, report = sac.truncate(spec, state)
     ranks = sac.rank_state(spec, new)
     assert all(1 <= int(r) < 64 for r in ranks.values())

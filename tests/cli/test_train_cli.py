@@ -67,10 +67,27 @@ def test_seed_lists():
             parse_int_list(bad)
 
 
+def test_spec_lists_keep_fixed_dynamics_whole():
+    from adarl.cli.train import split_specs
+
+    assert split_specs("nominal,fixed:torso_length=0.5,foot_length=0.39,default") == (
+        "nominal",
+        "fixed:torso_length=0.5,foot_length=0.39",
+        "default",
+    )
+    assert split_specs("actor:1,critic:1") == ("actor:1", "critic:1")
+
+
 def test_help_lists_config_fields(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["train", "--help"])
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
-    for flag in ("--truncate-every", "--beta", "--rank-rule", "--parseval-coef", "--uncertainty-set"):
+    for flag in (
+        "--truncate-every",
+        "--beta",
+        "--rank-rule",
+        "--parseval-coef",
+        "--uncertainty-set",
+    ):
         assert flag in out

@@ -2,6 +2,7 @@
 compiles, later ones load), tiny sweep files, and checks on finished runs."""
 
 import csv
+import os
 from pathlib import Path
 
 import pytest
@@ -9,13 +10,11 @@ import yaml
 
 
 @pytest.fixture(scope="session")
-def jax_cache(request, tmp_path_factory):
-    """Kept in pytest's cache folder, so only the first run of these tests pays for compiling
-    (JAX keys entries by program, flags and version: a stale entry is never used)."""
-    cache = getattr(request.config, "cache", None)
-    if cache is None:  # -p no:cacheprovider
-        return tmp_path_factory.mktemp("jax-cache")
-    return cache.mkdir("adarl-sweeps-jax-cache")
+def jax_cache():
+    """The test suite's compilation cache (tests/conftest.py), so the units reuse what the
+    trainer tests compiled for the same smoke settings (JAX keys entries by program, flags and
+    version: a stale entry is never used)."""
+    return os.environ["JAX_COMPILATION_CACHE_DIR"]
 
 
 @pytest.fixture(autouse=True)
