@@ -82,3 +82,14 @@ def test_sampling_is_uniform_over_transitions():
     assert len(counts) == 300
     expected = 60_000 / 300
     assert counts.min() > 0.6 * expected and counts.max() < 1.4 * expected
+
+
+def test_humanoid_buffer_fits_in_one_and_a_half_gigabytes_per_seed():
+    from adarl.envs import get_task
+
+    task = get_task("humanoid")
+    rows = 1_000
+    buf = replay.init_buffer(rows, task.obs_dim, task.act_dim)
+    per_row = sum(v.nbytes for v in buf.values() if v.ndim) / rows
+    assert task.obs_dim == 348
+    assert per_row * 1_000_000 <= 1.5e9  # 1.47 GB at 10⁶ rows: observations stored once
