@@ -278,7 +278,9 @@ def init_state(spec: Spec, seed: int, with_buffer: bool = True) -> dict:
     q2 = mlp.init_layers(rng, spec.critic, c.init, rank=init_rank)
     critic = jax.tree_util.tree_map(lambda a, b: np.stack([a, b]), q1, q2)
     actor_masks = mlp.rank_masks(spec.actor, init_rank)
-    critic_masks = [None if m is None else np.stack([m, m]) for m in mlp.rank_masks(spec.critic, init_rank)]
+    critic_masks = [
+        None if m is None else np.stack([m, m]) for m in mlp.rank_masks(spec.critic, init_rank)
+    ]
     state = {
         "actor": actor,
         "critic": critic,

@@ -171,10 +171,15 @@ class Run:
         for k in BUFFER_ROW_KEYS:
             saved = arrays[f"buffer/{k}"]
             if saved.shape[0] != self.n or saved.shape[2:] != buf[k].shape[2:]:
-                raise UsageError(f"checkpoint buffer {k!r} has shape {saved.shape}; expected "
-                                 f"{self.n} seeds and rows of shape {buf[k].shape[2:]}")
+                raise UsageError(
+                    f"checkpoint buffer {k!r} has shape {saved.shape}; expected "
+                    f"{self.n} seeds and rows of shape {buf[k].shape[2:]}"
+                )
             buf[k] = buf[k].at[:, : saved.shape[1]].set(saved)
-        buf["ptr"], buf["size"] = jnp.asarray(arrays["buffer/ptr"]), jnp.asarray(arrays["buffer/size"])
+        buf["ptr"], buf["size"] = (
+            jnp.asarray(arrays["buffer/ptr"]),
+            jnp.asarray(arrays["buffer/size"]),
+        )
         state["buffer"] = buf
         self.state = state
         self.act_keys = jnp.asarray(arrays["host/act_keys"])
