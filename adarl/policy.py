@@ -95,16 +95,21 @@ def sparse_coding_step(x: np.ndarray, d: np.ndarray, eta: float, lam: float) -> 
     return np.maximum(x + eta * (x @ d - (x @ d.T) @ d) - eta * lam, 0.0)
 
 
-def save(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
-    """Write a policy file atomically (checks that it loads first)."""
+def to_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """The bytes of a policy file (checks that it loads first)."""
     import io
-
-    from adarl.train.io import atomic_write_bytes
 
     NumpyPolicy(arrays)
     buf = io.BytesIO()
     np.savez(buf, **{k: np.asarray(v) for k, v in arrays.items()})
-    atomic_write_bytes(path, buf.getvalue())
+    return buf.getvalue()
+
+
+def save(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
+    """Write a policy file atomically."""
+    from adarl.train.io import atomic_write_bytes
+
+    atomic_write_bytes(path, to_bytes(arrays))
 
 
 def load(path: str | os.PathLike) -> NumpyPolicy:

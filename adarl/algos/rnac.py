@@ -706,7 +706,7 @@ def train(
     from adarl import envs
     from adarl.evaluation.rollout import run_episodes
     from adarl.policy import NumpyPolicy
-    from adarl.policy import save as save_policy
+    from adarl.policy import to_bytes as policy_bytes
     from adarl.train import io
 
     config.validate()
@@ -852,9 +852,12 @@ def train(
             "env_states": env_states,
             "csv_offsets": {name: logs[name].offset() for name in csv_names},
         }
-        folder = io.save_checkpoint(run_dir, step, arrays, meta, keep=config.keep_checkpoints)
-        for i, s in enumerate(seeds):  # written after meta.json: see docs/rnac.md
-            save_policy(folder / f"policy_seed_{s}.npz", seed_policy(i))
+        policies = {
+            f"policy_seed_{s}.npz": policy_bytes(seed_policy(i)) for i, s in enumerate(seeds)
+        }
+        io.save_checkpoint(
+            run_dir, step, arrays, meta, keep=config.keep_checkpoints, files=policies
+        )
 
     try:
         while step < config.total_steps:

@@ -183,10 +183,16 @@ def checkpoint_dirs(run_dir: str | os.PathLike) -> list[Path]:
 
 
 def save_checkpoint(
-    run_dir: str | os.PathLike, step: int, arrays: dict[str, np.ndarray], meta: dict, keep: int = 2
+    run_dir: str | os.PathLike,
+    step: int,
+    arrays: dict[str, np.ndarray],
+    meta: dict,
+    keep: int = 2,
+    files: dict[str, bytes] | None = None,
 ) -> Path:
-    """Write `checkpoints/step_<step>/` atomically: a temp folder holding arrays.npz and
-    meta.json (written last) is renamed into place, then older checkpoints beyond `keep` go."""
+    """Write `checkpoints/step_<step>/` atomically: a temp folder holding arrays.npz, the extra
+    `files` (name -> bytes, e.g. policy files) and meta.json (written last) is renamed into
+    place, then older checkpoints beyond `keep` go."""
     root = Path(run_dir) / CHECKPOINT_DIR
     root.mkdir(parents=True, exist_ok=True)
     final = root / f"step_{step:012d}"
@@ -196,6 +202,11 @@ def save_checkpoint(
             np.savez(f, **arrays)
             f.flush()
             os.fsync(f.fileno())
+        for name, data in (files or {}).items():
+            with open(tmp / name, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
         meta = dict(
             meta, step=int(step), format_version=RUN_FORMAT_VERSION, adarl_version=__version__
         )

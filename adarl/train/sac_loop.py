@@ -383,7 +383,7 @@ class Run:
                 self.last_eval[self.seeds[i]] = mean_return
 
     def save(self) -> None:
-        from adarl.policy import save as save_policy
+        from adarl.policy import to_bytes
 
         meta = {
             "algo": self.config.algo,
@@ -392,15 +392,18 @@ class Run:
             "env_states": [_to_json(env.get_state()) for env in self.envs],
             "csv_offsets": {name: log.offset() for name, log in self.logs.items()},
         }
-        path = io.save_checkpoint(
+        policies = {
+            f"policy_seed_{seed}.npz": to_bytes(arrays)
+            for seed, arrays in zip(self.seeds, self.export_policies())
+        }
+        io.save_checkpoint(
             self.run_dir,
             self.step,
             self.checkpoint_arrays(),
             meta,
             keep=self.config.keep_checkpoints,
+            files=policies,
         )
-        for seed, arrays in zip(self.seeds, self.export_policies()):
-            save_policy(path / f"policy_seed_{seed}.npz", arrays)
 
     # ------------------------------------------------------------------ the loop
     def loop(self) -> None:
