@@ -63,3 +63,27 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
     assert (tmp_path / "run" / "DONE").exists()
     eval_rows = io.read_csv(tmp_path / "run" / "eval.csv")
     assert {r["seed"] for r in eval_rows} == {"0", "1"}
+
+
+@pytest.mark.parametrize("algo", ["sac-fixed-rank", "sac-parseval", "sac-sparse"])
+def test_runs_with_one_seed(algo, tmp_path):
+    """One seed alone (sac and adarl alone are covered in tests/train/test_sac_loop.py)."""
+    values = {
+        **SAC_FAMILY[algo],
+        **sac.PRESETS["smoke"],
+        "algo": algo,
+        "task": "hopper",
+        "seeds": (0,),
+        "total_steps": 200,
+        "start_steps": 100,
+        "update_after": 100,
+        "checkpoint_every": 200,
+        "eval_every": 200,
+        "log_every": 100,
+        **ALGOS[algo],
+    }
+    sac_loop.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
+    rows = io.read_csv(tmp_path / "run" / "train.csv")
+    assert [int(r["step"]) for r in rows] == [100, 200]
+    assert all(np.isfinite(float(r["loss_q"])) for r in rows)
+    assert (tmp_path / "run" / "checkpoints").is_dir() and (tmp_path / "run" / "DONE").exists()
