@@ -69,6 +69,9 @@ class SACConfig:
     warmup_steps: int = 2000  # learning-rate warm-up after each truncation
     lr_min_ratio: float = 0.1  # floor of the cosine decay, as a fraction of the learning rate
     schedule_first_iteration: bool = False  # warm-up + cosine before the first truncation too
+    # after a truncation, narrow each bottleneck to the largest rank among the seeds (and
+    # recompile): cheaper updates for the rest of the run; False keeps full width, masked
+    compact_bottlenecks: bool = True
     # --- regularisers / architectures of the baselines
     parseval_coef: float = 0.0  # c in c·‖WWᵀ − sI‖²_F (sac-parseval)
     parseval_scale: float = 2.0  # s
@@ -570,6 +573,73 @@ def truncate(spec: Spec, state: dict):
         n_truncations=state["n_truncations"] + 1,
     )
     return state, report
+
+
+def bottleneck_widths(spec: Spec) -> dict[str, int]:
+    """Stored width of every bottleneck layer: {"actor:1": 64, "critic:1": 64}."""
+    return {
+        f"{net}:{i}": layer[2]
+        for net, layout in (("actor", spec.actor), ("critic", spec.critic))
+        for i, layer in enumerate(layout)
+        if layer[0] == "bottleneck"
+    }
+
+
+def with_widths(spec: Spec, widths: dict[str, int]) -> Spec:
+    """The same spec with the bottlenecks stored `widths` wide (keys as `bottleneck_widths`)."""
+
+    def relayout(net, layout):
+        return tuple(
+            ("bottleneck", layer[1], int(widths[f"{net}:{i}"]), layer[3])
+            if layer[0] == "bottleneck"
+            else layer
+            for i, layer in enumerate(layout)
+        )
+
+    return dataclasses.replace(
+        spec, actor=relayout("actor", spec.actor), critic=relayout("critic", spec.critic)
+    )
+
+
+def narrow_state(spec: Spec, state: dict) -> dict:
+    """Cut every bottleneck of `state` (any leading seed axes) to the widths of `spec`: the
+    factors W1[..., :w], W2[..., :w, :], their Adam moments and the rank masks. Exact when no
+    rank exceeds its new width (the cut components are zero)."""
+
+    def cut(layers, layout):
+        out = list(layers)
+        for i, layer in enumerate(layout):
+            if layer[0] == "bottleneck":
+                w = layer[2]
+                out[i] = dict(
+                    layers[i], w1=layers[i]["w1"][..., :w], w2=layers[i]["w2"][..., :w, :]
+                )
+        return out
+
+    def cut_masks(masks, layout):
+        return [m if m is None else m[..., : layer[2]] for m, layer in zip(masks, layout)]
+
+    def cut_actor(tree):
+        return dict(tree, trunk=cut(tree["trunk"], spec.actor))
+
+    def cut_adam(opt, cutter):
+        return optax.ScaleByAdamState(count=opt.count, mu=cutter(opt.mu), nu=cutter(opt.nu))
+
+    def cut_critic(tree):
+        return cut(tree, spec.critic)
+
+    return dict(
+        state,
+        actor=cut_actor(state["actor"]),
+        critic=cut_critic(state["critic"]),
+        critic_target=cut_critic(state["critic_target"]),
+        opt_actor=cut_adam(state["opt_actor"], cut_actor),
+        opt_critic=cut_adam(state["opt_critic"], cut_critic),
+        masks={
+            "actor": cut_masks(state["masks"]["actor"], spec.actor),
+            "critic": cut_masks(state["masks"]["critic"], spec.critic),
+        },
+    )
 
 
 def rank_state(spec: Spec, state: dict) -> dict[str, jnp.ndarray]:

@@ -162,6 +162,8 @@ class Run:
 
     def restore(self, arrays: dict, meta: dict) -> None:
         c = self.config
+        if meta.get("bottleneck_widths"):
+            self.use_spec(sac.with_widths(self.spec, meta["bottleneck_widths"]))
         one = sac.init_state(self.spec, 0, with_buffer=False)
         template = jax.tree_util.tree_map(
             lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
@@ -309,6 +311,24 @@ class Run:
                     }
                 )
         self.logs["truncations.csv"].write(rows)
+        if c.compact_bottlenecks:
+            self.narrow_bottlenecks(jax.device_get(self.fns.ranks(self.state)))
+
+    def narrow_bottlenecks(self, ranks: dict) -> None:
+        """Store each bottleneck only as wide as the largest rank among the seeds (and recompile
+        the update for those shapes): the cut components are exactly zero."""
+        widths = {}
+        for key in sac.bottleneck_widths(self.spec):
+            net, _, i = key.partition(":")
+            names = [f"actor_{i}"] if net == "actor" else [f"q1_{i}", f"q2_{i}"]
+            widths[key] = int(max(np.max(ranks[n]) for n in names))
+        if widths != sac.bottleneck_widths(self.spec):
+            self.use_spec(sac.with_widths(self.spec, widths))
+            self.state = sac.narrow_state(self.spec, self.state)
+
+    def use_spec(self, spec: sac.Spec) -> None:
+        self.spec = spec
+        self.fns = compile_functions(spec)
 
     def write_train_log(self, steps_per_s: float) -> None:
         infos = jax.device_get(self.pending_infos)
@@ -391,6 +411,7 @@ class Run:
             "np_rngs": [rng.bit_generator.state for rng in self.np_rngs],
             "env_states": [_to_json(env.get_state()) for env in self.envs],
             "csv_offsets": {name: log.offset() for name, log in self.logs.items()},
+            "bottleneck_widths": sac.bottleneck_widths(self.spec),
         }
         policies = {
             f"policy_seed_{seed}.npz": to_bytes(arrays)

@@ -287,3 +287,31 @@ def test_bad_config_is_a_one_line_error(bad, message):
     with pytest.raises(UsageError, match=message) as err:
         sac.SACConfig(**bad).validate()
     assert "\n" not in str(err.value)
+
+
+def test_narrowing_bottlenecks_keeps_the_networks_function(adarl_run):
+    spec, _, state = adarl_run
+    state, _ = sac.truncate(spec, state)
+    ranks = {k: int(v) for k, v in sac.rank_state(spec, state).items()}
+    widths = {"actor:1": ranks["actor_1"], "critic:1": max(ranks["q1_1"], ranks["q2_1"])}
+    narrow_spec = sac.with_widths(spec, widths)
+    narrow = sac.narrow_state(narrow_spec, state)
+    assert narrow["actor"]["trunk"][1]["w1"].shape == (64, widths["actor:1"])
+    assert narrow["critic"][1]["w2"].shape == (2, widths["critic:1"], 64)
+    assert narrow["opt_critic"].mu[1]["w1"].shape == (2, 64, widths["critic:1"])
+    assert sac.bottleneck_widths(narrow_spec) == widths
+    obs = jnp.asarray(np.random.default_rng(4).normal(size=(16, OBS)), jnp.float32)
+    act = jnp.asarray(np.random.default_rng(5).uniform(-1, 1, size=(16, ACT)), jnp.float32)
+    np.testing.assert_allclose(
+        sac.actor_forward(narrow_spec, narrow["actor"], narrow["masks"]["actor"], obs)[0],
+        sac.actor_forward(spec, state["actor"], state["masks"]["actor"], obs)[0],
+        rtol=1e-5,
+        atol=1e-5,
+    )
+    np.testing.assert_allclose(
+        sac.q_values(narrow_spec, narrow["critic"], narrow["masks"]["critic"], obs, act),
+        sac.q_values(spec, state["critic"], state["masks"]["critic"], obs, act),
+        rtol=1e-5,
+        atol=1e-5,
+    )
+    assert {k: int(v) for k, v in sac.rank_state(narrow_spec, narrow).items()} == ranks
