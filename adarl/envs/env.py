@@ -231,7 +231,12 @@ def make(
 ) -> DynamicsEnv:
     """Task env following `dynamics` (a name like "paper" or "fixed:torso_length=0.5", or a
     `DynamicsSchedule`), with `overrides` fixed on top. `seed` seeds the first reset and the
-    schedule's draws: the same seed gives the same parameter sequence."""
+    schedule's draws: the same seed gives the same parameter sequence. A task named `gym:<id>` is
+    any registered Gymnasium env with fixed dynamics (`adarl.envs.plain`)."""
+    if isinstance(task, str) and task.startswith("gym:"):
+        from adarl.envs.plain import make_plain
+
+        return make_plain(task, dynamics, seed, max_episode_steps=max_episode_steps, **overrides)
     spec = get_task(task)
     schedule = parse_dynamics(dynamics, spec.name).with_overrides(**overrides)
     if (

@@ -67,21 +67,17 @@ class PlainEnv(gymnasium.Wrapper):
         raw.state = np.asarray(state["state"], dtype=np.float64)
 
 
-def make_plain(task: str, seed: int | None = 0, max_episode_steps: int = 1000, **_) -> PlainEnv:
+def make_plain(
+    task: str, dynamics="default", seed: int | None = 0, max_episode_steps: int = 1000, **overrides
+) -> PlainEnv:
+    """`gym:<id>` as a task; its dynamics are Gymnasium's own and cannot be changed."""
+    if dynamics not in ("paper", "nominal", "default"):
+        raise UsageError(f"task {task!r} has fixed dynamics; got dynamics {dynamics!r}")
+    if overrides:
+        raise UsageError(f"task {task!r} has no physical parameters; got {', '.join(overrides)}")
     env_id = task[len(PREFIX) :]
     try:
         raw = gymnasium.make(env_id, disable_env_checker=True).unwrapped
     except gymnasium.error.Error as exc:
         raise UsageError(f"unknown Gymnasium env {env_id!r} in task {task!r}") from exc
     return PlainEnv(raw, seed, max_episode_steps)
-
-
-def make_any(task: str, dynamics="paper", seed: int | None = 0, **kwargs):
-    """`adarl.envs.make` for the MuJoCo tasks, `make_plain` for `gym:<id>` tasks."""
-    if task.startswith(PREFIX):
-        if dynamics not in ("paper", "nominal", "default"):
-            raise UsageError(f"task {task!r} has fixed dynamics; got dynamics {dynamics!r}")
-        return make_plain(task, seed=seed, **kwargs)
-    from adarl.envs import make
-
-    return make(task, dynamics=dynamics, seed=seed, **kwargs)

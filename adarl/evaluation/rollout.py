@@ -25,9 +25,9 @@ def run_episodes(
     episode: `episode, return, length` and `p_<param>` for the episode's physical parameters.
     `max_steps` (optional) cuts every episode after that many steps (for quick checks).
     """
-    from adarl.envs.plain import make_any
+    from adarl.envs import make
 
-    env = make_any(task, dynamics=dynamics, seed=seed, **overrides)
+    env = make(task, dynamics=dynamics, seed=seed, **overrides)
     rows = []
     try:
         for k in range(n_episodes):

@@ -98,18 +98,15 @@ class Run:
     """Host-side state of a run: environments, counters, logs. Pure data plus the loop."""
 
     def __init__(self, config: sac.SACConfig, run_dir: Path, progress: bool = True):
-        from adarl.envs import get_task
-        from adarl.envs.plain import PREFIX, make_any
+        from adarl.envs import make
 
         self.config = config.validate()
         self.run_dir = Path(run_dir)
         self.progress = progress
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
-        if not config.task.startswith(PREFIX):
-            get_task(config.task)  # a one-line error for an unknown task before anything is built
-        self.envs = [
-            make_any(
+        self.envs = [  # an unknown task or dynamics fails here, before anything is written
+            make(
                 config.task,
                 dynamics=config.dynamics,
                 seed=s,
