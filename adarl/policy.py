@@ -17,6 +17,8 @@ File format (`format = "adarl-policy-1"`), one `.npz`:
       sparse:             l{i}_d (n×n), l{i}_eta, l{i}_lam: one ISTA step, no extra activation,
                           x ↦ ReLU(x + η(Dᵀx − DᵀDx) − ηλ)
     mean_w, mean_b        the action-mean head
+    log_std_w, log_std_b  (optional) the log-std head, for `NumpyPolicy.sample` (exploration);
+                          the files adarl writes next to checkpoints leave it out
     squash                "tanh": a = c + h·tanh(μ);  "clip": a = clip(μ, low, high)
     action_low/high       action bounds (c, h are their centre and half-range)
     obs_mean/obs_var/obs_clip (optional) observation normalisation: clip((o − m)/√(v + 1e-8), ±clip)
@@ -41,46 +43,72 @@ def _activation(name: str):
 
 
 class NumpyPolicy:
-    """A deterministic policy read from the arrays of an adarl policy file."""
+    """A policy read from the arrays of an adarl policy file: deterministic by default, and a
+    squashed-Gaussian sampler (`sample`) when the file carries the log-std head."""
 
     def __init__(self, arrays: dict[str, np.ndarray]):
         fmt = str(arrays.get("format", ""))
         if fmt != FORMAT:
             raise ValueError(f"not an adarl policy (format {fmt!r}, expected {FORMAT!r})")
-        self.arrays = {k: np.asarray(v) for k, v in arrays.items()}
-        self._act = _activation(str(arrays["activation"]))
-        self.n_layers = int(arrays["n_layers"])
-        self.squash = str(arrays["squash"])
-        self.low = np.asarray(arrays["action_low"], np.float32)
-        self.high = np.asarray(arrays["action_high"], np.float32)
+        a = self.arrays = {k: np.asarray(v) for k, v in arrays.items()}
+        self._act = _activation(str(a["activation"]))
+        self.n_layers = int(a["n_layers"])
+        self.squash = str(a["squash"])
+        self.low = np.asarray(a["action_low"], np.float32)
+        self.high = np.asarray(a["action_high"], np.float32)
+        self._centre, self._half = (self.high + self.low) / 2, (self.high - self.low) / 2
+        self._layers = []  # read once: the trainer calls this policy at every environment step
+        for i in range(self.n_layers):
+            kind = str(a[f"l{i}_kind"])
+            if kind == "dense":
+                self._layers.append((kind, a[f"l{i}_w"], a[f"l{i}_b"]))
+            elif kind == "bottleneck":
+                self._layers.append((kind, a[f"l{i}_w1"], a[f"l{i}_w2"], a[f"l{i}_b"]))
+            elif kind == "sparse":
+                d, eta, lam = a[f"l{i}_d"], float(a[f"l{i}_eta"]), float(a[f"l{i}_lam"])
+                self._layers.append((kind, d, eta, lam))
+            else:
+                raise ValueError(f"unknown layer kind {kind!r} in policy file")
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
+    def features(self, obs: np.ndarray) -> np.ndarray:
+        """The trunk's output (after its last activation), read by the heads."""
         a = self.arrays
         x = np.asarray(obs, np.float32)
         if "obs_mean" in a:
             x = (x - a["obs_mean"]) / np.sqrt(a["obs_var"] + 1e-8)
             x = np.clip(x, -a["obs_clip"], a["obs_clip"])
-        for i in range(self.n_layers):
-            kind = str(a[f"l{i}_kind"])
+        for kind, *p in self._layers:
             if kind == "dense":
-                x = self._act(x @ a[f"l{i}_w"] + a[f"l{i}_b"])
+                x = self._act(x @ p[0] + p[1])
             elif kind == "bottleneck":
-                x = self._act((x @ a[f"l{i}_w1"]) @ a[f"l{i}_w2"] + a[f"l{i}_b"])
-            elif kind == "sparse":
-                x = sparse_coding_step(
-                    x, a[f"l{i}_d"], float(a[f"l{i}_eta"]), float(a[f"l{i}_lam"])
-                )
+                x = self._act((x @ p[0]) @ p[1] + p[2])
             else:
-                raise ValueError(f"unknown layer kind {kind!r} in policy file")
-        mean = x @ a["mean_w"] + a["mean_b"]
+                x = sparse_coding_step(x, *p)
+        return x
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        mean = self.features(obs) @ self.arrays["mean_w"] + self.arrays["mean_b"]
+        return self._bound(mean)
+
+    def sample(self, obs: np.ndarray, noise: np.ndarray) -> np.ndarray:
+        """Exploration action a = c + h·tanh(μ + σ·ε) for standard-normal `noise` ε, with
+        log σ clamped to [−20, 2] (SAC's squashed Gaussian; needs `log_std_w`/`log_std_b`)."""
+        if "log_std_w" not in self.arrays:
+            raise ValueError("this policy file has no log-std head; it is deterministic only")
+        h = self.features(obs)
+        mean = h @ self.arrays["mean_w"] + self.arrays["mean_b"]
+        log_std = np.clip(h @ self.arrays["log_std_w"] + self.arrays["log_std_b"], -20.0, 2.0)
+        return self._bound(mean + np.exp(log_std) * noise)
+
+    def _bound(self, u: np.ndarray) -> np.ndarray:
         if self.squash == "tanh":
-            centre, half = (self.high + self.low) / 2, (self.high - self.low) / 2
-            return (centre + half * np.tanh(mean)).astype(np.float32)
-        return np.clip(mean, self.low, self.high).astype(np.float32)
+            return (self._centre + self._half * np.tanh(u)).astype(np.float32)
+        return np.clip(u, self.low, self.high).astype(np.float32)
 
     def n_params(self) -> int:
         """Parameters of the deterministic policy as stored (bottlenecks at their current rank)."""
         skip = {"action_low", "action_high", "obs_mean", "obs_var", "obs_clip", "n_params_full"}
+        skip |= {"log_std_w", "log_std_b"}
         return int(
             sum(
                 v.size

@@ -21,9 +21,9 @@ import sys
 import tempfile
 import time
 
-os.environ.setdefault(
-    "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-)
+from adarl.runtime import configure_xla  # noqa: E402
+
+configure_xla()
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
@@ -54,30 +54,29 @@ def training_rate(config: sac.SACConfig, steps: int, warmup: int) -> tuple[float
     run = sac_loop.Run(config, tmp, progress=False)
     run.fresh()
     run.open_logs(None)
-    run.pending_infos, run.recent_returns, run.last_eval = [], [], {}
 
     def advance(k):
-        for _ in range(k):
-            run.env_step(run.choose_actions())
-            if run.step % config.update_every == 0:
-                run.end_chunk()
-                run.pending_infos.clear()
+        target = run.step + k
+        while run.step < target:
+            run.train_chunk()
+            for lane in run.lanes:
+                lane.infos.clear()
 
     advance(warmup)
-    jax.block_until_ready(run.state)
-    start = time.perf_counter()
+    run.block_until_ready()
+    start, first = time.perf_counter(), run.step
     advance(steps)
-    jax.block_until_ready(run.state)
-    rate = steps / (time.perf_counter() - start)
+    run.block_until_ready()
+    rate = (run.step - first) / (time.perf_counter() - start)
     run.close_logs()
     return rate, run
 
 
 def truncation_cost(run: sac_loop.Run, rate: float) -> tuple[float, float]:
-    """Seconds per truncation, and its share of the training time between two truncations."""
-    state = jax.tree_util.tree_map(lambda a: a.copy(), run.state)
+    """Seconds per truncation (one lane), and its share of the training time between two."""
+    state = jax.tree_util.tree_map(lambda a: a.copy(), run.lanes[0].state)
     jax.block_until_ready(run.fns.truncate(state))  # compile
-    state = jax.tree_util.tree_map(lambda a: a.copy(), run.state)
+    state = jax.tree_util.tree_map(lambda a: a.copy(), run.lanes[0].state)
     start = time.perf_counter()
     jax.block_until_ready(run.fns.truncate(state))
     seconds = time.perf_counter() - start

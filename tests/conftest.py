@@ -1,13 +1,13 @@
-"""Shared test settings: one XLA thread (faster for these small networks on 2 cores), a
-persistent compilation cache shared by the tests and the CLI subprocesses they start, and a
-headless matplotlib backend."""
+"""Shared test settings: the CLI's XLA flags (`adarl.runtime`: one thread per computation, one
+CPU device per core), a persistent compilation cache shared by the tests and the CLI
+subprocesses they start, and a headless matplotlib backend."""
 
 import os
 import tempfile
 
-os.environ.setdefault(
-    "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-)
+from adarl.runtime import configure_xla
+
+configure_xla()
 os.environ.setdefault(
     "JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), "adarl-test-jax-cache")
 )

@@ -41,6 +41,9 @@ class SACConfig:
     dynamics: str = "paper"
     seeds: tuple[int, ...] = (0,)
     total_steps: int = 1_000_000
+    # the seeds form this many lanes (at most one per seed), each one vmapped update on its own
+    # device; a lane's environments step on the host while other lanes' updates run
+    lanes: int = 4
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)
     activation: str = "relu"
@@ -105,10 +108,17 @@ class SACConfig:
             "log_every",
             "checkpoint_every",
             "eval_episodes",
+            "lanes",
         ]
         for name in positive:
             if getattr(self, name) <= 0:
                 raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
+        for name in ("eval_every", "log_every", "checkpoint_every"):  # they fire between chunks
+            if getattr(self, name) % self.update_every:
+                raise UsageError(
+                    f"{name.replace('_', '-')} must be a multiple of update-every "
+                    f"({self.update_every}), got {getattr(self, name)}"
+                )
         for name in ("start_steps", "update_after", "warmup_steps", "keep_checkpoints"):
             if getattr(self, name) < 0:
                 raise UsageError(f"{name.replace('_', '-')} must be ≥ 0, got {getattr(self, name)}")
@@ -656,9 +666,13 @@ def rank_state(spec: Spec, state: dict) -> dict[str, jnp.ndarray]:
 
 
 # ============================================================================ export
-def export_policy(spec: Spec, actor: dict, masks: list) -> dict[str, np.ndarray]:
+def export_policy(
+    spec: Spec, actor: dict, masks: list, log_std: bool = False
+) -> dict[str, np.ndarray]:
     """The deterministic policy of one seed in the `adarl.policy` file format; bottleneck
-    factors are cut to their rank, so the file holds the compressed network."""
+    factors are cut to their rank, so the file holds the compressed network. `log_std=True`
+    adds the log-std head, which the trainer's host-side exploration (`NumpyPolicy.sample`)
+    reads."""
     c = spec.config
     out = {
         "format": np.array("adarl-policy-1"),
@@ -686,6 +700,9 @@ def export_policy(spec: Spec, actor: dict, masks: list) -> dict[str, np.ndarray]
     out["mean_w"] = np.asarray(actor["mu"]["w"])
     out["mean_b"] = np.asarray(actor["mu"]["b"])
     n_full += out["mean_w"].size + out["mean_b"].size
+    if log_std:
+        out["log_std_w"] = np.asarray(actor["log_std"]["w"])
+        out["log_std_b"] = np.asarray(actor["log_std"]["b"])
     out["n_params_full"] = np.array(n_full)
     return out
 

@@ -13,6 +13,7 @@ import sys
 
 from adarl import __version__
 from adarl.errors import UsageError
+from adarl.runtime import configure_xla
 
 COMMANDS = {
     "train": "adarl.cli.train",
@@ -55,11 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    # One XLA thread: for these small networks two threads are slower on a 2-core machine, and
-    # sweep workers must not fight over cores (override by setting XLA_FLAGS yourself).
-    os.environ.setdefault(
-        "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-    )
+    # One XLA thread per computation and one CPU device per core (override by setting XLA_FLAGS
+    # yourself): see adarl.runtime.
+    configure_xla()
     # Reuse compiled updates across runs (a fresh compile of the SAC update takes 5-20 s).
     os.environ.setdefault(
         "JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "adarl", "jax")

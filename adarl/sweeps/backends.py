@@ -22,27 +22,17 @@ import threading
 from pathlib import Path
 
 from adarl.errors import UsageError
+from adarl.runtime import with_xla_flags
 
 RAY_INSTALL = "pip install 'adarl[ray]'"
 
 
 # ----------------------------------------------------------------------------- the job
 def thread_env(cpus: int, cache_dir: Path | None = None) -> dict[str, str]:
-    """Environment for a unit's process: XLA, OpenMP and BLAS limited to `cpus` threads so that
-    concurrent units do not fight over cores; JAX's compilation cache in `cache_dir` (unless the
+    """Environment for a unit's process: XLA (one thread per computation, `cpus` CPU devices),
+    OpenMP and BLAS limited to `cpus` threads so that concurrent units do not fight over cores; JAX's compilation cache in `cache_dir` (unless the
     caller's environment already names one) so resumed and retried units skip recompiling."""
-    kept = [
-        f
-        for f in os.environ.get("XLA_FLAGS", "").split()
-        if not f.lstrip("-").startswith(
-            ("xla_cpu_multi_thread_eigen", "intra_op_parallelism_threads")
-        )
-    ]
-    if cpus == 1:
-        kept += ["--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1"]
-    else:
-        kept += [f"intra_op_parallelism_threads={cpus}"]
-    env = {"XLA_FLAGS": " ".join(kept)}
+    env = {"XLA_FLAGS": with_xla_flags(os.environ.get("XLA_FLAGS", ""), cpus)}
     for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         env[name] = str(cpus)
     if cache_dir is not None and "JAX_COMPILATION_CACHE_DIR" not in os.environ:

@@ -5,6 +5,14 @@ of `adarl.algos.sac` is `vmap`ped over seeds, so all seeds advance in lock-step.
 the environments, collects `update_every` transitions per seed, then makes one jitted call that
 appends them to the device buffers and runs `update_every` gradient steps (`lax.scan`).
 
+The seeds are split into `lanes` (two by default), each with its own vmapped state. JAX runs a
+lane's update asynchronously while the host steps the next lane's environments, so on a 2-core
+machine the simulator and the learner overlap. Exploration actions are sampled on the host
+(`NumpyPolicy.sample`, noise from each seed's NumPy generator) from a copy of the lane's actor
+taken after its update, so stepping a lane never waits behind another lane's update. Every seed
+still sees exactly Spinning Up's schedule: `update_every` steps with the current policy, then
+`update_every` updates.
+
 Writes the run folder described in docs/run-format.md and checkpoints everything needed to
 continue exactly: `train(config, run_dir, resume=True)` restores the newest complete checkpoint,
 cuts the CSV logs back to it and continues with the same results as an uninterrupted run.
@@ -46,11 +54,10 @@ BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
 
 @dataclasses.dataclass
 class Compiled:
-    """The jitted, seed-vmapped functions of one run."""
+    """The jitted, seed-vmapped functions of one run (each lane size compiles its own)."""
 
     collect: callable  # append rows only (before update_after)
     collect_and_update: callable
-    act: callable
     truncate: callable
     ranks: callable
     diagnostics: callable
@@ -64,10 +71,6 @@ def compile_functions(spec: sac.Spec) -> Compiled:
     append = functools.partial(sac.append_and_update, spec, n_updates=0)
     update = functools.partial(sac.append_and_update, spec, n_updates=c.update_every)
 
-    def act(actor, masks, obs, key):
-        key, sub = jax.random.split(key)
-        return sac.act(spec, actor, masks, obs, sub), key
-
     def diagnostics(state):
         out = {}
         if c.sparse_width:
@@ -79,11 +82,32 @@ def compile_functions(spec: sac.Spec) -> Compiled:
     return Compiled(
         collect=jax.jit(vmap(append), donate_argnums=(0,)),
         collect_and_update=jax.jit(vmap(update), donate_argnums=(0,)),
-        act=jax.jit(vmap(act)),
         truncate=jax.jit(vmap(functools.partial(sac.truncate, spec)), donate_argnums=(0,)),
         ranks=jax.jit(vmap(functools.partial(sac.rank_state, spec))),
         diagnostics=jax.jit(vmap(diagnostics)),
     )
+
+
+def split_lanes(n_seeds: int, lanes: int) -> list[range]:
+    """Positions of the seeds in each lane: `lanes` contiguous groups, sizes as equal as
+    possible, larger first (5 seeds, 2 lanes: [0, 1, 2], [3, 4])."""
+    lanes = min(lanes, n_seeds)
+    sizes = [n_seeds // lanes + (i < n_seeds % lanes) for i in range(lanes)]
+    starts = np.cumsum([0, *sizes])
+    return [range(starts[i], starts[i + 1]) for i in range(lanes)]
+
+
+@dataclasses.dataclass
+class Lane:
+    """A group of seeds trained by one vmapped update. Lanes take turns: while one lane's
+    update runs (JAX dispatches it asynchronously), the host steps the next lane's
+    environments, so the update and the simulator use both cores of the machine."""
+
+    seeds: range  # positions in Run.seeds
+    state: dict  # device state, leading axis = the lane's seeds
+    builder: replay.ChunkBuilder
+    infos: list = dataclasses.field(default_factory=list)  # update metrics not yet logged
+    actors: list | None = None  # host copies of the current policies; None = stale
 
 
 def config_to_yaml(config, extra: dict | None = None) -> str:
@@ -95,7 +119,7 @@ def config_to_yaml(config, extra: dict | None = None) -> str:
 
 
 class Run:
-    """Host-side state of a run: environments, counters, logs. Pure data plus the loop."""
+    """Host-side state of a run: environments, lanes of seeds, counters, logs; and the loop."""
 
     def __init__(self, config: sac.SACConfig, run_dir: Path, progress: bool = True):
         from adarl.envs import make
@@ -120,21 +144,15 @@ class Run:
         )
         self.fns = compile_functions(self.spec)
         self.layer_names = sac.bottleneck_names(config)
-        self.builder = replay.ChunkBuilder(
-            self.n, config.update_every, self.spec.obs_dim, self.spec.act_dim
-        )
+        self.lane_seeds = split_lanes(self.n, config.lanes)
 
     # ------------------------------------------------------------------ state
     def fresh(self) -> None:
-        c = self.config
         states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
-        self.state = jax.device_put(jax.tree_util.tree_map(lambda *a: np.stack(a), *states))
-        self.state["buffer"] = replay.empty_buffers(
-            self.n, c.buffer_size, self.spec.obs_dim, self.spec.act_dim
-        )
-        self.act_keys = jnp.asarray(np.stack([sac.action_key(s) for s in self.seeds]))
+        self.set_lanes(jax.tree_util.tree_map(lambda *a: np.stack(a), *states))
         self.np_rngs = [np.random.default_rng(s) for s in self.seeds]
         self.step = 0
+        self.n_updates, self.iteration_start = 0, 0
         self.obs = np.zeros((self.n, self.spec.obs_dim), np.float32)
         self.ep_return = np.zeros(self.n)
         self.ep_length = np.zeros(self.n, np.int64)
@@ -142,16 +160,46 @@ class Run:
             o, _ = env.reset(seed=self.seeds[i])
             self.obs[i] = o
 
+    def set_lanes(self, state: dict, buffers: dict | None = None) -> None:
+        """Split a host state of all seeds (no buffer) into lanes on the device; `buffers`:
+        saved buffer rows of all seeds, or None for empty buffers."""
+        c = self.config
+        devices = jax.local_devices()
+        self.lanes = []
+        for k, seeds in enumerate(self.lane_seeds):
+            device = devices[k % len(devices)]
+            part = jax.device_put(_take(state, slice(seeds.start, seeds.stop)), device)
+            buf = replay.empty_buffers(
+                len(seeds), c.buffer_size, self.spec.obs_dim, self.spec.act_dim
+            )
+            if buffers is not None:
+                for k in BUFFER_ROW_KEYS:
+                    saved = buffers[k][seeds.start : seeds.stop]
+                    buf[k] = buf[k].at[:, : saved.shape[1]].set(saved)
+                buf["ptr"] = jnp.asarray(buffers["ptr"][seeds.start : seeds.stop])
+                buf["size"] = jnp.asarray(buffers["size"][seeds.start : seeds.stop])
+            part["buffer"] = jax.device_put(buf, device)
+            builder = replay.ChunkBuilder(
+                len(seeds), c.update_every, self.spec.obs_dim, self.spec.act_dim
+            )
+            self.lanes.append(Lane(seeds=seeds, state=part, builder=builder))
+
+    def gather(self, fn=None):
+        """`fn(lane.state)` (default: the state) of every lane on the host, concatenated along
+        the seed axis in seed order."""
+        parts = [jax.device_get(fn(lane.state) if fn else lane.state) for lane in self.lanes]
+        return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
+
     def checkpoint_arrays(self) -> dict[str, np.ndarray]:
-        state = jax.device_get(self.state)
-        buf = state.pop("buffer")
-        # only the rows written so far (plus the provisional one) are worth saving
-        used = int(min(buf["obs"].shape[1], int(np.max(buf["size"])) + 1))
+        state = self.gather(lambda s: {k: v for k, v in s.items() if k != "buffer"})
         arrays = io.flatten_tree(state, "state")
+        bufs = [jax.device_get(lane.state["buffer"]) for lane in self.lanes]
+        # only the rows written so far (plus the provisional one) are worth saving
+        used = int(min(bufs[0]["obs"].shape[1], max(int(np.max(b["size"])) for b in bufs) + 1))
         for k in BUFFER_ROW_KEYS:
-            arrays[f"buffer/{k}"] = buf[k][:, :used]
-        arrays["buffer/ptr"], arrays["buffer/size"] = buf["ptr"], buf["size"]
-        arrays["host/act_keys"] = np.asarray(self.act_keys)
+            arrays[f"buffer/{k}"] = np.concatenate([b[k][:, :used] for b in bufs])
+        for k in ("ptr", "size"):
+            arrays[f"buffer/{k}"] = np.concatenate([b[k] for b in bufs])
         arrays["host/obs"] = self.obs
         arrays["host/ep_return"] = self.ep_return
         arrays["host/ep_length"] = self.ep_length
@@ -159,29 +207,33 @@ class Run:
 
     def restore(self, arrays: dict, meta: dict) -> None:
         c = self.config
+        if "host/act_keys" in arrays:
+            raise UsageError(
+                "this checkpoint was written by an adarl that sampled exploration actions with "
+                "JAX keys; it cannot be continued exactly here: train a new run"
+            )
         if meta.get("bottleneck_widths"):
             self.use_spec(sac.with_widths(self.spec, meta["bottleneck_widths"]))
         one = sac.init_state(self.spec, 0, with_buffer=False)
         template = jax.tree_util.tree_map(
             lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
         )
-        state = jax.device_put(io.unflatten_tree(template, arrays, "state"))
-        buf = replay.empty_buffers(self.n, c.buffer_size, self.spec.obs_dim, self.spec.act_dim)
+        state = io.unflatten_tree(template, arrays, "state")
+        rows = (c.buffer_size, self.spec.obs_dim, self.spec.act_dim)
+        expected = {"obs": rows[1:2], "act": rows[2:3], "rew": (), "term": (), "valid": ()}
+        buffers = {}
         for k in BUFFER_ROW_KEYS:
             saved = arrays[f"buffer/{k}"]
-            if saved.shape[0] != self.n or saved.shape[2:] != buf[k].shape[2:]:
+            if saved.shape[0] != self.n or saved.shape[2:] != expected[k]:
                 raise UsageError(
                     f"checkpoint buffer {k!r} has shape {saved.shape}; expected "
-                    f"{self.n} seeds and rows of shape {buf[k].shape[2:]}"
+                    f"{self.n} seeds and rows of shape {expected[k]}"
                 )
-            buf[k] = buf[k].at[:, : saved.shape[1]].set(saved)
-        buf["ptr"], buf["size"] = (
-            jnp.asarray(arrays["buffer/ptr"]),
-            jnp.asarray(arrays["buffer/size"]),
-        )
-        state["buffer"] = buf
-        self.state = state
-        self.act_keys = jnp.asarray(arrays["host/act_keys"])
+            buffers[k] = saved
+        buffers["ptr"], buffers["size"] = arrays["buffer/ptr"], arrays["buffer/size"]
+        self.set_lanes(state, buffers)
+        self.n_updates = int(state["n_updates"][0])
+        self.iteration_start = int(state["iteration_start"][0])
         self.obs = arrays["host/obs"].astype(np.float32)
         self.ep_return = arrays["host/ep_return"].copy()
         self.ep_length = arrays["host/ep_length"].copy()
@@ -223,6 +275,7 @@ class Run:
                 ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"],
             )
         self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets else None)
+        self.recent_returns, self.last_eval = [], {}
 
     def param_columns(self) -> list[str]:
         return [f"p_{k}" for k in (self.envs[0].dynamics_params or {})]
@@ -233,26 +286,48 @@ class Run:
         self.tb.close()
 
     # ------------------------------------------------------------------ pieces of the loop
-    def choose_actions(self) -> np.ndarray:
-        if self.step < self.config.start_steps:
-            low, high = np.asarray(self.spec.act_low), np.asarray(self.spec.act_high)
-            return np.stack([rng.uniform(low, high).astype(np.float32) for rng in self.np_rngs])
-        actions, self.act_keys = self.fns.act(
-            self.state["actor"], self.state["masks"]["actor"], jnp.asarray(self.obs), self.act_keys
-        )
-        return np.asarray(actions)
+    def host_actors(self, lane: Lane) -> list:
+        """The lane's current policies as NumPy samplers (refreshed after each update): acting
+        on the host needs no device call, so it never waits behind another lane's update."""
+        from adarl.policy import NumpyPolicy
 
-    def env_step(self, actions: np.ndarray) -> None:
-        self.step += 1
-        for i, env in enumerate(self.envs):
-            next_obs, reward, terminated, truncated, info = env.step(actions[i])
+        if lane.actors is None:
+            actor = jax.device_get(lane.state["actor"])
+            masks = jax.device_get(lane.state["masks"]["actor"])
+            lane.actors = [
+                NumpyPolicy(sac.export_policy(self.spec, _take(actor, j), _take(masks, j), True))
+                for j in range(len(lane.seeds))
+            ]
+        return lane.actors
+
+    def choose_actions(self, lane: Lane, t: int) -> np.ndarray:
+        """Actions of the lane's seeds for environment step `t` (1-based): uniform before
+        `start_steps`, then a = c + h·tanh(μ + σε) with ε from the seed's NumPy generator."""
+        if t - 1 < self.config.start_steps:
+            low, high = np.asarray(self.spec.act_low), np.asarray(self.spec.act_high)
+            return np.stack(
+                [self.np_rngs[i].uniform(low, high).astype(np.float32) for i in lane.seeds]
+            )
+        actors, dim = self.host_actors(lane), self.spec.act_dim
+        return np.stack(
+            [
+                actor.sample(self.obs[i], self.np_rngs[i].standard_normal(dim, np.float32))
+                for actor, i in zip(actors, lane.seeds)
+            ]
+        )
+
+    def env_step(self, lane: Lane, t: int, actions: np.ndarray) -> None:
+        """Environment step `t` of the lane's seeds; rows go to the lane's chunk builder."""
+        for j, i in enumerate(lane.seeds):
+            env = self.envs[i]
+            next_obs, reward, terminated, truncated, info = env.step(actions[j])
             self.ep_return[i] += reward
             self.ep_length[i] += 1
             done = terminated or truncated
-            self.builder.add(i, self.obs[i], actions[i], reward, terminated, next_obs, done)
+            lane.builder.add(j, self.obs[i], actions[j], reward, terminated, next_obs, done)
             if done:
                 row = {
-                    "step": self.step,
+                    "step": t,
                     "seed": self.seeds[i],
                     "episode": int(info["episode_index"]),
                     "return": float(self.ep_return[i]),
@@ -260,34 +335,51 @@ class Run:
                 }
                 row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
                 self.logs["episodes.csv"].write(row)
-                self.tb.write(self.step, {f"episode/return/seed{self.seeds[i]}": self.ep_return[i]})
+                self.tb.write(t, {f"episode/return/seed{self.seeds[i]}": self.ep_return[i]})
                 self.recent_returns.append(float(self.ep_return[i]))
                 self.ep_return[i], self.ep_length[i] = 0.0, 0
                 next_obs, _ = env.reset()
             self.obs[i] = next_obs
 
-    def end_chunk(self) -> None:
-        for i in range(self.n):
-            self.builder.close(i, self.obs[i])
-        rows, n_rows = self.builder.rows()
+    def end_chunk(self, lane: Lane, t: int) -> None:
+        """Send the lane's chunk of rows to its buffers and start its update (asynchronous)."""
+        for j, i in enumerate(lane.seeds):
+            lane.builder.close(j, self.obs[i])
+        rows, n_rows = lane.builder.rows()
         rows = {k: jnp.asarray(v) for k, v in rows.items()}
-        if self.step >= self.config.update_after:
-            self.state, info = self.fns.collect_and_update(self.state, rows, jnp.asarray(n_rows))
-            self.pending_infos.append(info)
+        if t >= self.config.update_after:
+            lane.state, info = self.fns.collect_and_update(lane.state, rows, jnp.asarray(n_rows))
+            lane.infos.append(info)
+            lane.actors = None
         else:
-            self.state, _ = self.fns.collect(self.state, rows, jnp.asarray(n_rows))
-        self.builder.clear()
+            lane.state, _ = self.fns.collect(lane.state, rows, jnp.asarray(n_rows))
+        lane.builder.clear()
+
+    def train_chunk(self) -> None:
+        """Advance every lane to the end of the current chunk of `update_every` steps: step a
+        lane's environments, start its update, go on to the next lane."""
+        c = self.config
+        end = min((self.step // c.update_every + 1) * c.update_every, c.total_steps)
+        for lane in self.lanes:
+            for t in range(self.step + 1, end + 1):
+                self.env_step(lane, t, self.choose_actions(lane, t))
+            self.end_chunk(lane, end)
+        if end >= c.update_after:
+            self.n_updates += c.update_every
+        self.step = end
 
     def maybe_truncate(self) -> None:
         c = self.config
-        if not c.adapt_rank:
+        if not c.adapt_rank or self.n_updates - self.iteration_start < c.truncate_every:
             return
-        since = int(self.state["n_updates"][0] - self.state["iteration_start"][0])
-        if since < c.truncate_every:
-            return
-        old = jax.device_get(self.fns.ranks(self.state))
-        self.state, report = self.fns.truncate(self.state)
-        report = jax.device_get(report)
+        old = self.gather(self.fns.ranks)
+        reports = []
+        for lane in self.lanes:
+            lane.state, report = self.fns.truncate(lane.state)
+            lane.actors = None
+            reports.append(jax.device_get(report))
+        report = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *reports)
+        self.iteration_start = self.n_updates
         spectra = {name: np.asarray(s) for name, (s, _, _) in report.items()}
         buf = BytesIO()
         np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
@@ -309,10 +401,10 @@ class Run:
                 )
         self.logs["truncations.csv"].write(rows)
         if c.compact_bottlenecks:
-            self.narrow_bottlenecks(jax.device_get(self.fns.ranks(self.state)))
+            self.narrow_bottlenecks(self.gather(self.fns.ranks))
 
     def narrow_bottlenecks(self, ranks: dict) -> None:
-        """Store each bottleneck only as wide as the largest rank among the seeds (and recompile
+        """Store each bottleneck only as wide as the largest rank among all seeds (and recompile
         the update for those shapes): the cut components are exactly zero."""
         widths = {}
         for key in sac.bottleneck_widths(self.spec):
@@ -321,20 +413,24 @@ class Run:
             widths[key] = int(max(np.max(ranks[n]) for n in names))
         if widths != sac.bottleneck_widths(self.spec):
             self.use_spec(sac.with_widths(self.spec, widths))
-            self.state = sac.narrow_state(self.spec, self.state)
+            for lane in self.lanes:
+                lane.state = sac.narrow_state(self.spec, lane.state)
 
     def use_spec(self, spec: sac.Spec) -> None:
         self.spec = spec
         self.fns = compile_functions(spec)
 
     def write_train_log(self, steps_per_s: float) -> None:
-        infos = jax.device_get(self.pending_infos)
-        self.pending_infos = []
-        if not infos:
+        if not self.lanes[0].infos:
             return
-        mean = {k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]}
-        ranks = jax.device_get(self.fns.ranks(self.state))
-        diag = jax.device_get(self.fns.diagnostics(self.state))
+        per_lane = []
+        for lane in self.lanes:
+            infos = jax.device_get(lane.infos)
+            lane.infos = []
+            per_lane.append({k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]})
+        mean = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *per_lane)
+        ranks = self.gather(self.fns.ranks)
+        diag = self.gather(self.fns.diagnostics)
         rows = []
         for i, seed in enumerate(self.seeds):
             row = {
@@ -361,10 +457,11 @@ class Run:
         self.logs["train.csv"].write(rows)
 
     def export_policies(self) -> list[dict]:
-        actor = jax.device_get(self.state["actor"])
-        masks = jax.device_get(self.state["masks"]["actor"])
-        take = lambda tree, i: jax.tree_util.tree_map(lambda a: a[i], tree)  # noqa: E731
-        return [sac.export_policy(self.spec, take(actor, i), take(masks, i)) for i in range(self.n)]
+        actor = self.gather(lambda s: s["actor"])
+        masks = self.gather(lambda s: s["masks"]["actor"])
+        return [
+            sac.export_policy(self.spec, _take(actor, i), _take(masks, i)) for i in range(self.n)
+        ]
 
     def evaluate(self) -> None:
         from adarl.evaluation.rollout import run_episodes
@@ -423,18 +520,19 @@ class Run:
             files=policies,
         )
 
+    def block_until_ready(self) -> None:
+        for lane in self.lanes:
+            jax.block_until_ready(lane.state)
+
     # ------------------------------------------------------------------ the loop
     def loop(self) -> None:
         c = self.config
-        self.pending_infos, self.recent_returns, self.last_eval = [], [], {}
         bar = _progress(c.total_steps, self.step, self.progress)
         t_log, s_log = time.perf_counter(), self.step
         while self.step < c.total_steps:
-            self.env_step(self.choose_actions())
-            t = self.step
-            if t % c.update_every == 0 or t == c.total_steps:
-                self.end_chunk()
-                self.maybe_truncate()
+            self.train_chunk()
+            self.maybe_truncate()
+            t = self.step  # a chunk boundary: every `*_every` is a multiple of update_every
             if t % c.log_every == 0 or t == c.total_steps:
                 now = time.perf_counter()
                 rate = (t - s_log) / max(now - t_log, 1e-9)
@@ -444,7 +542,7 @@ class Run:
                 self.evaluate()
             if t % c.checkpoint_every == 0 or t == c.total_steps:
                 self.save()
-            if bar is not None and (t % 100 == 0 or t == c.total_steps):
+            if bar is not None:
                 recent = self.recent_returns[-10 * self.n :]
                 bar.set_postfix_str(
                     f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False
@@ -453,6 +551,11 @@ class Run:
         if bar is not None:
             bar.close()
         io.atomic_write_text(self.run_dir / "DONE", f"{self.step}\n")
+
+
+def _take(tree, i: int | slice):
+    """Seed `i` (or a slice of seeds) of a tree of seed-stacked arrays."""
+    return jax.tree_util.tree_map(lambda a: a[i], tree)
 
 
 def _progress(total: int, start: int, enabled: bool):

@@ -265,6 +265,27 @@ def test_export_matches_the_jax_policy():
     assert policy.n_params() < int(arrays["n_params_full"])
 
 
+@pytest.mark.parametrize("algo", ["sac", "adarl", "sac-sparse"])
+def test_host_exploration_sample_matches_the_jax_sampler(algo):
+    """The trainer samples exploration actions on the host (NumPy); with the same noise ε they
+    equal `sac.sample_action`'s squashed Gaussian."""
+    from adarl.policy import NumpyPolicy
+
+    spec, state = make(algo, **({"beta": 0.7} if algo == "adarl" else {}))
+    state = filled_state(spec, state)
+    if algo == "adarl":
+        state, _ = sac.truncate(spec, state)
+    actor, masks = state["actor"], state["masks"]["actor"]
+    policy = NumpyPolicy(sac.export_policy(spec, actor, masks, log_std=True))
+    obs = np.random.default_rng(4).normal(size=(16, OBS)).astype(np.float32)
+    key = jax.random.PRNGKey(7)
+    expected, _ = sac.sample_action(spec, actor, masks, obs, key)
+    noise = np.asarray(jax.random.normal(key, (16, ACT)))
+    np.testing.assert_allclose(policy.sample(obs, noise), expected, rtol=1e-5, atol=1e-5)
+    with pytest.raises(ValueError, match="log-std"):
+        NumpyPolicy(sac.export_policy(spec, actor, masks)).sample(obs, noise)
+
+
 @pytest.mark.parametrize(
     "bad, message",
     [

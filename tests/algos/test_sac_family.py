@@ -40,9 +40,9 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
     config = sac.SACConfig(**values)
     original = sac_loop.Run.env_step
 
-    def crashing(self, actions):
-        original(self, actions)
-        if self.step == 300:
+    def crashing(self, lane, t, actions):
+        original(self, lane, t, actions)
+        if t == 300:
             raise Crash
 
     monkeypatch.setattr(sac_loop.Run, "env_step", crashing)

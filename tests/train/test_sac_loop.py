@@ -68,9 +68,9 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch):
 
     original = sac_loop.Run.env_step
 
-    def crashing(self, actions):
-        original(self, actions)
-        if self.step == 1_600:  # after the checkpoint at 1000 and a truncation
+    def crashing(self, lane, t, actions):
+        original(self, lane, t, actions)
+        if t == 1_600:  # after the checkpoint at 1000 and a truncation
             raise Crash
 
     monkeypatch.setattr(sac_loop.Run, "env_step", crashing)
@@ -90,27 +90,39 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch):
     assert spectra == sorted(p.name for p in (tmp_path / "full" / "spectra").iterdir())
 
 
+def test_split_lanes():
+    assert sac_loop.split_lanes(5, 4) == [range(0, 2), range(2, 3), range(3, 4), range(4, 5)]
+    assert sac_loop.split_lanes(5, 2) == [range(0, 3), range(3, 5)]
+    assert sac_loop.split_lanes(2, 4) == [range(0, 1), range(1, 2)]
+    assert sac_loop.split_lanes(1, 4) == [range(0, 1)]
+    assert sac_loop.split_lanes(8, 3) == [range(0, 3), range(3, 6), range(6, 8)]
+
+
 def test_several_seeds_match_training_each_alone(tmp_path):
-    """Seeds vmapped together follow the same trajectory as each seed trained alone."""
-    config = smoke_config(seeds=(0, 3), total_steps=1_000, checkpoint_every=1_000)
-    sac_loop.train(config, tmp_path / "both", progress=False)
-    sac_loop.train(
-        smoke_config(seeds=(3,), total_steps=1_000, checkpoint_every=1_000),
-        tmp_path / "alone",
-        progress=False,
-    )
-    both = [r for r in csv_rows(tmp_path / "both", "episodes.csv") if r["seed"] == "3"]
-    alone = csv_rows(tmp_path / "alone", "episodes.csv")
-    # same environment stream: random warm-up actions are identical, so are early episodes
-    assert both[:5] == alone[:5]
-    train_both = [r for r in csv_rows(tmp_path / "both", "train.csv") if r["seed"] == "3"]
-    train_alone = csv_rows(tmp_path / "alone", "train.csv")
-    assert len(train_both) == len(train_alone)
-    for a, b in zip(train_both, train_alone):
-        for key in ("loss_q", "loss_pi", "q_mean", "entropy"):
-            assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-3, abs=1e-4), key
-        for key in ("rank_actor_1", "rank_q1_1", "rank_q2_1"):
-            assert a[key] == b[key]
+    """Seeds vmapped together in a lane (0 and 3), and a seed in a lane of its own (5, on the
+    second CPU device when there is one), follow the same trajectory as each seed alone."""
+    config = smoke_config(seeds=(0, 3, 5), lanes=2, total_steps=1_000, checkpoint_every=1_000)
+    sac_loop.train(config, tmp_path / "all", progress=False)
+    for seed in (3, 5):
+        sac_loop.train(
+            smoke_config(seeds=(seed,), total_steps=1_000, checkpoint_every=1_000),
+            tmp_path / f"alone{seed}",
+            progress=False,
+        )
+        together = [r for r in csv_rows(tmp_path / "all", "episodes.csv") if r["seed"] == str(seed)]
+        alone = csv_rows(tmp_path / f"alone{seed}", "episodes.csv")
+        # same environment stream: random warm-up actions are identical, so are early episodes
+        assert together[:5] == alone[:5]
+        train_together = [
+            r for r in csv_rows(tmp_path / "all", "train.csv") if r["seed"] == str(seed)
+        ]
+        train_alone = csv_rows(tmp_path / f"alone{seed}", "train.csv")
+        assert len(train_together) == len(train_alone)
+        for a, b in zip(train_together, train_alone):
+            for key in ("loss_q", "loss_pi", "q_mean", "entropy"):
+                assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-3, abs=1e-4), key
+            for key in ("rank_actor_1", "rank_q1_1", "rank_q2_1"):
+                assert a[key] == b[key]
 
 
 def test_new_run_refuses_a_non_empty_folder(tmp_path):
