@@ -318,11 +318,6 @@ def update_key(seed: int) -> np.ndarray:
     return np.array([0, seed], np.uint32)
 
 
-def action_key(seed: int) -> np.ndarray:
-    """Raw threefry key of the action-sampling stream, distinct from the update stream's."""
-    return np.array([1, seed], np.uint32)
-
-
 def _adam_zeros(params):
     """A fresh Adam state, built in NumPy (equal to `_adam().init(params)`)."""
     zeros = jax.tree_util.tree_map(np.zeros_like, params)

@@ -136,13 +136,16 @@ class ChunkBuilder:
         self.n[seed_idx] = i + 1
 
     def rows(self) -> tuple[dict, np.ndarray]:
+        """Copies of the chunk's rows. JAX may read a host array after the call that was given
+        it returns (when the device is busy), so the builder's own arrays, which the next chunk
+        overwrites, must not be handed over."""
         return (
             {
-                "obs": self.obs,
-                "act": self.act,
-                "rew": self.rew,
-                "term": self.term,
-                "valid": self.valid,
+                "obs": self.obs.copy(),
+                "act": self.act.copy(),
+                "rew": self.rew.copy(),
+                "term": self.term.copy(),
+                "valid": self.valid.copy(),
             },
             self.n.copy(),
         )

@@ -104,6 +104,7 @@ class Lane:
     environments, so the update and the simulator use both cores of the machine."""
 
     seeds: range  # positions in Run.seeds
+    device: jax.Device
     state: dict  # device state, leading axis = the lane's seeds
     builder: replay.ChunkBuilder
     infos: list = dataclasses.field(default_factory=list)  # update metrics not yet logged
@@ -182,7 +183,7 @@ class Run:
             builder = replay.ChunkBuilder(
                 len(seeds), c.update_every, self.spec.obs_dim, self.spec.act_dim
             )
-            self.lanes.append(Lane(seeds=seeds, state=part, builder=builder))
+            self.lanes.append(Lane(seeds=seeds, device=device, state=part, builder=builder))
 
     def gather(self, fn=None):
         """`fn(lane.state)` (default: the state) of every lane on the host, concatenated along
@@ -345,14 +346,13 @@ class Run:
         """Send the lane's chunk of rows to its buffers and start its update (asynchronous)."""
         for j, i in enumerate(lane.seeds):
             lane.builder.close(j, self.obs[i])
-        rows, n_rows = lane.builder.rows()
-        rows = {k: jnp.asarray(v) for k, v in rows.items()}
+        rows, n_rows = jax.device_put(lane.builder.rows(), lane.device)
         if t >= self.config.update_after:
-            lane.state, info = self.fns.collect_and_update(lane.state, rows, jnp.asarray(n_rows))
+            lane.state, info = self.fns.collect_and_update(lane.state, rows, n_rows)
             lane.infos.append(info)
             lane.actors = None
         else:
-            lane.state, _ = self.fns.collect(lane.state, rows, jnp.asarray(n_rows))
+            lane.state, _ = self.fns.collect(lane.state, rows, n_rows)
         lane.builder.clear()
 
     def train_chunk(self) -> None:

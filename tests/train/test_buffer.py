@@ -93,3 +93,17 @@ def test_humanoid_buffer_fits_in_one_and_a_half_gigabytes_per_seed():
     per_row = sum(v.nbytes for v in buf.values() if v.ndim) / rows
     assert task.obs_dim == 348
     assert per_row * 1_000_000 <= 1.5e9  # 1.47 GB at 10⁶ rows: observations stored once
+
+
+def test_chunk_rows_do_not_share_memory_with_the_builder():
+    """JAX may copy a host array after the call that was given it returns (when the device is
+    busy with another lane's update), so the rows handed over must not be the builder's arrays,
+    which the next chunk overwrites."""
+    builder = replay.ChunkBuilder(2, 4, 3, 2)
+    builder.add(0, np.ones(3), np.ones(2), 1.0, False, np.ones(3), False)
+    rows, n = builder.rows()
+    owned = [builder.obs, builder.act, builder.rew, builder.term, builder.valid, builder.n]
+    for array in [*rows.values(), n]:
+        assert not any(np.shares_memory(array, mine) for mine in owned)
+    builder.clear()
+    assert rows["valid"][0, 0] == 1 and n[0] == 1
