@@ -28,6 +28,8 @@ from adarl.cli.train import parse_int_list
         (["--algo", "sac-parseval", "--parseval-coef", "-1"], "parseval-coef must be"),
         (["--algo", "sac-sparse", "--sparse-width", "-1"], "sparse-width must be"),
         (["--hidden", "64,0"], "hidden sizes must be"),
+        (["--lanes", "0"], "lanes must be > 0, got 0"),
+        (["--eval-every", "1001"], "eval-every must be a multiple of update-every (50), got 1001"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_creates_nothing(argv, needle, tmp_path, capsys):
