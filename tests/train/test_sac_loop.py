@@ -63,7 +63,8 @@ class Crash(Exception):
 
 
 def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch):
-    config = smoke_config(seeds=(0, 1), total_steps=2_000, checkpoint_every=1_000)
+    # lanes of 2 seeds (vmapped) and 1 seed (on the second CPU device when there is one)
+    config = smoke_config(seeds=(0, 1, 2), lanes=2, total_steps=2_000, checkpoint_every=1_000)
     sac_loop.train(config, tmp_path / "full", progress=False)
 
     original = sac_loop.Run.env_step
@@ -96,6 +97,23 @@ def test_split_lanes():
     assert sac_loop.split_lanes(2, 4) == [range(0, 1), range(1, 2)]
     assert sac_loop.split_lanes(1, 4) == [range(0, 1)]
     assert sac_loop.split_lanes(8, 3) == [range(0, 3), range(3, 6), range(6, 8)]
+
+
+def test_lanes_hold_their_seeds_on_separate_devices(tmp_path):
+    run = sac_loop.Run(smoke_config(seeds=(4, 7, 9), lanes=2), tmp_path / "run", progress=False)
+    run.fresh()
+    assert [lane.seeds for lane in run.lanes] == [range(0, 2), range(2, 3)]
+    assert [lane.state["buffer"]["obs"].shape[0] for lane in run.lanes] == [2, 1]
+    devices = jax.local_devices()
+    assert [lane.device for lane in run.lanes] == [devices[0], devices[1 % len(devices)]]
+    for lane in run.lanes:
+        assert lane.state["actor"]["mu"]["w"].devices() == {lane.device}
+    # the checkpoint stacks the lanes back in seed order, exactly as they were initialised
+    arrays = run.checkpoint_arrays()
+    expected = [
+        sac.init_state(run.spec, s, with_buffer=False)["actor"]["mu"]["w"] for s in (4, 7, 9)
+    ]
+    np.testing.assert_array_equal(arrays["state['actor']['mu']['w']"], np.stack(expected))
 
 
 def test_several_seeds_match_training_each_alone(tmp_path):
