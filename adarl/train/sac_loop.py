@@ -162,8 +162,8 @@ class Run:
             self.obs[i] = o
 
     def set_lanes(self, state: dict, buffers: dict | None = None) -> None:
-        """Split a host state of all seeds (no buffer) into lanes on the device; `buffers`:
-        saved buffer rows of all seeds, or None for empty buffers."""
+        """Split a host state of all seeds (without buffers) into lanes, lane k on local device
+        k mod (number of devices); `buffers`: saved buffer rows of all seeds, or None (empty)."""
         c = self.config
         devices = jax.local_devices()
         self.lanes = []
