@@ -69,6 +69,20 @@ def test_rank_never_grows_and_is_at_least_one():
             assert new == max(1, min(old, proposed))
 
 
+@pytest.mark.parametrize("beta", [0.9, 0.98, 0.999])
+def test_cumulative_rule_always_cuts_a_bottleneck_of_rank_above_one(beta):
+    """Eq. 5 has no fixed point above rank 1: a rank-r product has σ_{r+1..} = 0, so
+    Σ_{i≤r}σ_i / Σσ_i = 1 > β and r̂ ≤ r − 1 at every truncation. The rank after k truncations
+    is at most r₀ − k: the number of truncations, total steps / d_t, bounds how far it falls."""
+    rng = np.random.default_rng(1)
+    for r in range(2, 65):
+        for _ in range(5):
+            sigma = np.zeros(64)
+            sigma[:r] = np.sort(rng.uniform(0.01, 5, size=r) ** rng.uniform(0.5, 4))[::-1]
+            proposed = int(rank.select_rank_cumulative(jnp.asarray(sigma, jnp.float32), beta))
+            assert proposed == np_cumulative_rule(sigma, beta) <= r - 1
+
+
 def random_factors(seed, n_in=64, width=64, n_out=64, rank_=64):
     rng = np.random.default_rng(seed)
     w1 = rng.normal(size=(n_in, width)).astype(np.float32)
