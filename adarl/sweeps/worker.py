@@ -86,9 +86,6 @@ def main(argv: list[str] | None = None) -> int:
         command = ["train", *train_args, "--out", str(run_dir), "--no-progress"]
     print("$ adarl " + " ".join(command), flush=True)
     sys.argv = ["adarl", *command]  # what `adarl train` records as the run's command
-    # tensorboardX imports torch when it is installed (only to accept torch tensors): seconds of
-    # start-up per unit for nothing, as the trainers are JAX. Make that optional import fail.
-    sys.modules.setdefault("torch", None)
     from adarl.cli.main import main as adarl_main
 
     return adarl_main(command)

@@ -11,6 +11,7 @@ import io
 import json
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -125,13 +126,26 @@ def read_csv(path: str | os.PathLike) -> list[dict]:
 
 
 # ----------------------------------------------------------------------------- TensorBoard
+def _summary_writer():
+    """tensorboardX's SummaryWriter, imported without torch. tensorboardX imports torch when it
+    is installed (the `bench` extra), only to accept torch tensors, which costs 1.5–2 s per
+    process; torch is hidden during that import and importable again afterwards."""
+    hide = "torch" not in sys.modules
+    if hide:
+        sys.modules["torch"] = None  # makes `import torch` raise ImportError
+    try:
+        from tensorboardX import SummaryWriter
+    finally:
+        if hide:
+            del sys.modules["torch"]
+    return SummaryWriter
+
+
 class Scalars:
     """TensorBoard scalar writer; `purge_step` hides events past a resumed checkpoint."""
 
     def __init__(self, log_dir: str | os.PathLike, purge_step: int | None = None):
-        from tensorboardX import SummaryWriter
-
-        self._writer = SummaryWriter(str(log_dir), purge_step=purge_step, flush_secs=30)
+        self._writer = _summary_writer()(str(log_dir), purge_step=purge_step, flush_secs=30)
 
     def write(self, step: int, scalars: dict[str, float]) -> None:
         for name, value in scalars.items():
