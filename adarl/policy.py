@@ -32,6 +32,7 @@ import os
 import numpy as np
 
 FORMAT = "adarl-policy-1"
+LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0  # SAC's clamp of the log-std head
 
 
 def _activation(name: str):
@@ -97,7 +98,8 @@ class NumpyPolicy:
             raise ValueError("this policy file has no log-std head; it is deterministic only")
         h = self.features(obs)
         mean = h @ self.arrays["mean_w"] + self.arrays["mean_b"]
-        log_std = np.clip(h @ self.arrays["log_std_w"] + self.arrays["log_std_b"], -20.0, 2.0)
+        log_std = h @ self.arrays["log_std_w"] + self.arrays["log_std_b"]
+        log_std = np.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
         return self._bound(mean + np.exp(log_std) * noise)
 
     def _bound(self, u: np.ndarray) -> np.ndarray:

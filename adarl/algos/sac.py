@@ -25,9 +25,8 @@ import optax
 from adarl.errors import UsageError, check_choice
 from adarl.nets import mlp, rank
 from adarl.nets.regularisers import parseval_penalty
+from adarl.policy import LOG_STD_MAX, LOG_STD_MIN
 from adarl.train import buffer as replay
-
-LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
 
 
 # ============================================================================ config

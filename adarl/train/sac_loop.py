@@ -189,7 +189,7 @@ class Run:
         """`fn(lane.state)` (default: the state) of every lane on the host, concatenated along
         the seed axis in seed order."""
         parts = [jax.device_get(fn(lane.state) if fn else lane.state) for lane in self.lanes]
-        return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
+        return _concat_lanes(parts)
 
     def checkpoint_arrays(self) -> dict[str, np.ndarray]:
         state = self.gather(lambda s: {k: v for k, v in s.items() if k != "buffer"})
@@ -207,7 +207,6 @@ class Run:
         return arrays
 
     def restore(self, arrays: dict, meta: dict) -> None:
-        c = self.config
         if "host/act_keys" in arrays:
             raise UsageError(
                 "this checkpoint was written by an adarl that sampled exploration actions with "
@@ -220,15 +219,14 @@ class Run:
             lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
         )
         state = io.unflatten_tree(template, arrays, "state")
-        rows = (c.buffer_size, self.spec.obs_dim, self.spec.act_dim)
-        expected = {"obs": rows[1:2], "act": rows[2:3], "rew": (), "term": (), "valid": ()}
+        expected = {"obs": (self.spec.obs_dim,), "act": (self.spec.act_dim,)}
         buffers = {}
         for k in BUFFER_ROW_KEYS:
             saved = arrays[f"buffer/{k}"]
-            if saved.shape[0] != self.n or saved.shape[2:] != expected[k]:
+            if saved.shape[0] != self.n or saved.shape[2:] != expected.get(k, ()):
                 raise UsageError(
                     f"checkpoint buffer {k!r} has shape {saved.shape}; expected "
-                    f"{self.n} seeds and rows of shape {expected[k]}"
+                    f"{self.n} seeds and rows of shape {expected.get(k, ())}"
                 )
             buffers[k] = saved
         buffers["ptr"], buffers["size"] = arrays["buffer/ptr"], arrays["buffer/size"]
@@ -342,12 +340,13 @@ class Run:
                 next_obs, _ = env.reset()
             self.obs[i] = next_obs
 
-    def end_chunk(self, lane: Lane, t: int) -> None:
-        """Send the lane's chunk of rows to its buffers and start its update (asynchronous)."""
+    def end_chunk(self, lane: Lane, update: bool) -> None:
+        """Send the lane's chunk of rows to its buffers and, if `update`, start its
+        `update_every` gradient steps (asynchronous)."""
         for j, i in enumerate(lane.seeds):
             lane.builder.close(j, self.obs[i])
         rows, n_rows = jax.device_put(lane.builder.rows(), lane.device)
-        if t >= self.config.update_after:
+        if update:
             lane.state, info = self.fns.collect_and_update(lane.state, rows, n_rows)
             lane.infos.append(info)
             lane.actors = None
@@ -360,11 +359,12 @@ class Run:
         lane's environments, start its update, go on to the next lane."""
         c = self.config
         end = min((self.step // c.update_every + 1) * c.update_every, c.total_steps)
+        update = end >= c.update_after
         for lane in self.lanes:
             for t in range(self.step + 1, end + 1):
                 self.env_step(lane, t, self.choose_actions(lane, t))
-            self.end_chunk(lane, end)
-        if end >= c.update_after:
+            self.end_chunk(lane, update)
+        if update:
             self.n_updates += c.update_every
         self.step = end
 
@@ -378,7 +378,7 @@ class Run:
             lane.state, report = self.fns.truncate(lane.state)
             lane.actors = None
             reports.append(jax.device_get(report))
-        report = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *reports)
+        report = _concat_lanes(reports)
         self.iteration_start = self.n_updates
         spectra = {name: np.asarray(s) for name, (s, _, _) in report.items()}
         buf = BytesIO()
@@ -428,7 +428,7 @@ class Run:
             infos = jax.device_get(lane.infos)
             lane.infos = []
             per_lane.append({k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]})
-        mean = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *per_lane)
+        mean = _concat_lanes(per_lane)
         ranks = self.gather(self.fns.ranks)
         diag = self.gather(self.fns.diagnostics)
         rows = []
@@ -551,6 +551,11 @@ class Run:
         if bar is not None:
             bar.close()
         io.atomic_write_text(self.run_dir / "DONE", f"{self.step}\n")
+
+
+def _concat_lanes(parts: list):
+    """Per-lane host trees (leading axis: the lane's seeds) joined into one over all seeds."""
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
 
 
 def _take(tree, i: int | slice):
