@@ -1,13 +1,34 @@
-"""The one exception type for bad user input.
+"""The exception types a user sees as one line, and the exit code each one gives.
 
 Anything a user can get wrong (a flag, a config field, a task name, a run folder) raises
 `UsageError` with a one-line message that names the bad value and what is allowed. The CLI turns
-it into `adarl: error: <message>` on stderr and exit code 2.
+it into `adarl: error: <message>` on stderr and exit code 2. A run that stops for another reason
+raises `RunFailed` (a file-system error at run time: exit code 1) or `Diverged` (a non-finite
+loss, parameter or return: exit code 3); see docs/reliability.md.
 """
+
+import dataclasses
+import math
+
+#: What a trainer does when a loss, parameter or return stops being finite (`--on-divergence`).
+ON_DIVERGENCE = ("stop", "continue")
+INT64_MAX = 2**63 - 1
 
 
 class UsageError(ValueError):
     """Bad user input; the message is a single line naming the value and what is allowed."""
+
+
+class RunFailed(RuntimeError):
+    """A run stopped by something other than bad input (a full disk, a lost permission)."""
+
+    exit_code = 1
+
+
+class Diverged(RunFailed):
+    """Training produced a non-finite loss, parameter or return."""
+
+    exit_code = 3
 
 
 def check_choice(kind: str, value: str, allowed) -> str:
@@ -16,3 +37,20 @@ def check_choice(kind: str, value: str, allowed) -> str:
     if value not in allowed:
         raise UsageError(f"unknown {kind} {value!r}; allowed: {', '.join(map(str, allowed))}")
     return value
+
+
+def check_numbers(config) -> None:
+    """Every float field of the dataclass `config` finite, every int field (and int in a tuple)
+    within int64; else a one-line `UsageError` naming the field."""
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        flag = f.name.replace("_", "-")
+        for v in value if isinstance(value, tuple) else (value,):
+            if isinstance(v, bool):
+                continue
+            if isinstance(v, float) and not math.isfinite(v):
+                raise UsageError(f"{flag} must be a finite number, got {v}")
+            if isinstance(v, int) and not -INT64_MAX - 1 <= v <= INT64_MAX:
+                raise UsageError(
+                    f"{flag} must fit in a 64-bit integer (at most {INT64_MAX}), got {v}"
+                )

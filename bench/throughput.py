@@ -16,6 +16,7 @@ is present. Compilation is excluded (a warm-up runs first).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import tempfile
@@ -72,14 +73,17 @@ def training_rate(config: sac.SACConfig, steps: int, warmup: int) -> tuple[float
     return rate, run
 
 
-def truncation_cost(run: sac_loop.Run, rate: float) -> tuple[float, float]:
-    """Seconds per truncation (one lane), and its share of the training time between two."""
+def truncation_cost(run: sac_loop.Run, rate: float, **config) -> tuple[float, float]:
+    """Seconds per truncation (one lane), and its share of the training time between two;
+    `config` changes fields of the run's config for this measurement (e.g. the retain test)."""
+    spec = dataclasses.replace(run.spec, config=dataclasses.replace(run.config, **config))
+    truncate = sac_loop.compile_functions(spec).truncate
     times = []
     for _ in range(6):  # the first call compiles; the best of the other five counts
         state = jax.tree_util.tree_map(lambda a: a.copy(), run.lanes[0].state)
         jax.block_until_ready(state)
         start = time.perf_counter()
-        jax.block_until_ready(run.fns.truncate(state))
+        jax.block_until_ready(truncate(state))
         times.append(time.perf_counter() - start)
     seconds = min(times[1:])
     interval = run.config.truncate_every / rate  # seconds of training between truncations
@@ -187,11 +191,16 @@ def main() -> int:
             f"seed-steps/s ({5 * lane / one:.2f}x one seed); {jax.local_device_count()} devices"
         )
         if algo == "adarl":
-            seconds, share = truncation_cost(run, one)
-            print(
-                f"       truncation: {seconds * 1000:.1f} ms = {100 * share:.4f}% of the "
-                f"training time between truncations (d_t = {run.config.truncate_every})"
-            )
+            for label, config in [
+                ("truncation, retain test off", {"retain_tolerance": None}),
+                ("truncation, retain test on ", {"retain_tolerance": 0.01}),
+                ("truncation, 1 test sample  ", {"retain_tolerance": 0.01, "retain_samples": 1}),
+            ]:
+                seconds, share = truncation_cost(run, one, **config)
+                print(
+                    f"       {label}: {seconds * 1000:.1f} ms = {100 * share:.4f}% of the "
+                    f"training time between truncations (d_t = {run.config.truncate_every})"
+                )
     masked, compact = update_cost(64, 7), update_cost(7, 7)
     print(
         f"\nupdate at rank 7: masked 64-wide {masked:.3f} ms, compact 7-wide {compact:.3f} ms "

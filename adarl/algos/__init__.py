@@ -12,3 +12,15 @@ SAC_FAMILY: dict[str, dict] = {
     "sac-sparse": {"sparse_width": 1024},
 }
 ALGOS: tuple[str, ...] = (*SAC_FAMILY, "rnac")
+
+# AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):
+# the paper's d_t (10⁶ gradient steps, 0.7·10⁶ on Walker2d) and the `paper-table1` step budgets,
+# so that a default run truncates (Hopper 2, the others 4 times); a flat 10⁶ steps would not.
+TASK_DEFAULTS: dict[str, dict[str, dict]] = {
+    "adarl": {
+        "hopper": {"total_steps": 3_000_000, "truncate_every": 1_000_000},
+        "walker2d": {"total_steps": 3_000_000, "truncate_every": 700_000},
+        "ant": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
+        "humanoid": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
+    },
+}

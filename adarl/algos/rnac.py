@@ -34,7 +34,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from adarl.errors import UsageError, check_choice
+from adarl.envs.tasks import PHYSICS, VERSIONS
+from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
 
 UNCERTAINTY_SETS = ("ds", "ipm")
 TRAIN_COLUMNS = [
@@ -59,6 +60,8 @@ class RNACConfig:
     # --- run
     task: str = "hopper"
     dynamics: str = "paper"
+    physics: str = "consistent"  # consistent (recompile: masses follow geometry) or ompo
+    model_version: str = "v5"  # Gymnasium's v5 or v4 (the port of the paper's Gym v3) models
     seeds: tuple[int, ...] = (0,)
     total_steps: int = 3_000_000  # environment steps per seed
     # --- uncertainty set
@@ -97,10 +100,16 @@ class RNACConfig:
     log_every: int = 2048
     checkpoint_every: int = 100_000
     keep_checkpoints: int = 2
+    # a non-finite loss, parameter or return: stop (exit code 3) or continue (docs/reliability.md)
+    on_divergence: str = "stop"
 
     def validate(self) -> RNACConfig:
         """Raise a one-line UsageError on any bad value; return self."""
+        check_numbers(self)
         check_choice("uncertainty set", self.uncertainty_set, UNCERTAINTY_SETS)
+        check_choice("physics", self.physics, PHYSICS)
+        check_choice("model version", self.model_version, VERSIONS)
+        check_choice("on-divergence", self.on_divergence, ON_DIVERGENCE)
         if not (0.0 <= self.delta <= 1.0):
             raise UsageError(f"delta must be in [0, 1], got {self.delta}")
         if self.n_candidates < 1:
@@ -153,6 +162,8 @@ PRESETS: dict[str, dict] = {
     "default": {},
     # the same with the IPM uncertainty set
     "ipm": {"uncertainty_set": "ipm"},
+    # the AdaRL paper's environments as its OMPO code ran them (as sac's `paper-ompo`)
+    "paper-ompo": {"dynamics": "ompo", "physics": "ompo", "model_version": "v4"},
     # tiny budgets for tests and smoke runs
     "smoke": {
         "total_steps": 2048,
@@ -560,6 +571,48 @@ def policy_arrays(actor: dict, obs_mean, obs_var, obs_clip: float, low, high) ->
     return arrays
 
 
+class BestPolicies:
+    """Each seed's best policy by mean nominal evaluation return, kept beside the final one as
+    RNAC's original keeps its best model. Every checkpoint stores it (`best_policy_seed_<s>.npz`
+    and meta.json's `best`), so a resumed run selects exactly as an uninterrupted one."""
+
+    METRIC = "mean nominal evaluation return"
+
+    def __init__(self, seeds):
+        self.seeds = [int(s) for s in seeds]
+        self.record: dict[int, dict] = {}  # seed -> {"step": …, "return": …}
+        self.files: dict[int, bytes] = {}  # seed -> the policy file's bytes
+
+    def offer(self, seed: int, step: int, mean_return: float, policy: dict) -> None:
+        """Keep `policy` if its finite `mean_return` beats the seed's best so far (ties: the
+        earlier one)."""
+        from adarl.policy import to_bytes
+
+        best = self.record.get(seed)
+        if math.isfinite(mean_return) and (best is None or mean_return > best["return"]):
+            self.record[seed] = {"step": int(step), "return": float(mean_return)}
+            self.files[seed] = to_bytes(policy)
+
+    def meta(self) -> dict:
+        seeds = {str(s): self.record[s] for s in self.seeds if s in self.record}
+        return {"metric": self.METRIC, "dynamics": "nominal", "seeds": seeds}
+
+    def checkpoint_files(self) -> dict[str, bytes]:
+        return {f"best_policy_seed_{s}.npz": self.files[s] for s in self.seeds if s in self.files}
+
+    def restore(self, meta: dict, checkpoint: Path) -> None:
+        """Read the best back from a checkpoint (none recorded: start empty)."""
+        for key, record in ((meta.get("best") or {}).get("seeds") or {}).items():
+            path = Path(checkpoint) / f"best_policy_seed_{int(key)}.npz"
+            try:
+                self.files[int(key)] = path.read_bytes()
+            except OSError:
+                raise UsageError(
+                    f"checkpoint {checkpoint} has no {path.name}, which its meta.json lists"
+                ) from None
+            self.record[int(key)] = {"step": int(record["step"]), "return": float(record["return"])}
+
+
 # ============================================================================ training
 @dataclass
 class Host:
@@ -699,8 +752,16 @@ def train(
     command: str = "",
 ) -> None:
     """Train RNAC for every seed of `config` together, writing the run folder `run_dir`
-    (docs/run-format.md). With `resume`, continue from its newest complete checkpoint (or start
-    again if it was killed before the first one). `command` is recorded in config.yaml."""
+    (docs/run-format.md). With `resume`, continue from its newest intact checkpoint (or start
+    again if it was killed before the first one). `command` is recorded in config.yaml. The run
+    folder's lock is held from the first write to the end (docs/reliability.md)."""
+    from adarl.train import io
+
+    with io.RunLock(run_dir) as lock:
+        _train(config, Path(run_dir), resume, progress, command, lock)
+
+
+def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, command: str, lock):
     from tqdm import tqdm
 
     from adarl import envs
@@ -716,30 +777,30 @@ def train(
     for spec in config.eval_dynamics:
         envs.parse_dynamics(spec, config.task)
     if resume:
-        if not (run_dir / "config.yaml").exists():
-            raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
+        io.check_resume_dir(run_dir)
+        lock.acquire(new=False)
         if (run_dir / "DONE").exists():
             print(f"run {run_dir} is already complete", file=sys.stderr)
             return
-        found = io.checkpoint_dirs(run_dir)
-        resume = bool(found)  # killed before its first checkpoint: start again
-        if found:
-            ckpt_arrays, meta = io.load_checkpoint(found[-1])
+        loaded = io.load_latest_intact(run_dir)
+        resume = loaded is not None  # killed before its first checkpoint: start again
+        if loaded:
+            ckpt_path, ckpt_arrays, meta = loaded
+            io.check_resume_config(run_dir, meta, config)
         else:
             for name in ("episodes", "train", "eval"):
                 io.CsvLog.truncate(run_dir / f"{name}.csv", 0)
-    elif run_dir.exists() and any(run_dir.iterdir()):
-        raise UsageError(
-            f"run folder {run_dir} already exists and is not empty; resume it or choose another"
-        )
     else:
-        run_dir.mkdir(parents=True, exist_ok=True)
+        io.check_new_run_dir(run_dir)
+        lock.acquire(new=True)
         _write_config(run_dir, config, command)
+        io.write_environment(run_dir)
 
     # --- environments, one per seed, and the double-sampling simulators
     seeds = [int(s) for s in config.seeds]
     n_seeds, t_roll = len(seeds), config.rollout_steps
-    env_list = [envs.make(config.task, dynamics=config.dynamics, seed=s) for s in seeds]
+    options = envs.env_options(config)  # physics and model version
+    env_list = [envs.make(config.task, config.dynamics, s, **options) for s in seeds]
     low = np.asarray(env_list[0].action_space.low, np.float64)
     high = np.asarray(env_list[0].action_space.high, np.float64)
     act_dtype = env_list[0].action_space.dtype
@@ -751,6 +812,7 @@ def train(
     state, update_keys = init_states(seeds, config, obs_dim, act_dim)
     update = make_update(config, low, high)
     host = Host.zeros(n_seeds, obs_dim, act_dim, t_roll)
+    best = BestPolicies(seeds)
 
     csv_names = ("episodes", "train", "eval")
     if resume:
@@ -768,6 +830,7 @@ def train(
             env.set_state(_decode(enc, ckpt_arrays))
         for name in csv_names:
             io.CsvLog.truncate(run_dir / f"{name}.csv", meta["csv_offsets"][name])
+        best.restore(meta, ckpt_path)
         param_names = list(env_list[0].dynamics_params)
     else:
         step = 0
@@ -820,7 +883,7 @@ def train(
             policy = NumpyPolicy(seed_policy(i))
             for spec in config.eval_dynamics:
                 rows = run_episodes(
-                    policy, config.task, spec, config.eval_episodes, seed=1_000_000 + s
+                    policy, config.task, spec, config.eval_episodes, 1_000_000 + s, **options
                 )
                 logs["eval"].write(
                     [
@@ -835,9 +898,10 @@ def train(
                         for r in rows
                     ]
                 )
-                tb.write(
-                    step, {f"seed_{s}/eval_return/{spec}": np.mean([r["return"] for r in rows])}
-                )
+                mean_return = float(np.mean([r["return"] for r in rows]))
+                tb.write(step, {f"seed_{s}/eval_return/{spec}": mean_return})
+                if spec == "nominal":
+                    best.offer(s, step, mean_return, policy.arrays)
 
     def checkpoint():
         arrays = io.flatten_tree(state, "state")
@@ -848,16 +912,32 @@ def train(
         ]
         meta = {
             "algo": "rnac",
+            "config": io.config_record(config),
             "rng_states": [rng.bit_generator.state for rng in rngs],
             "env_states": env_states,
             "csv_offsets": {name: logs[name].offset() for name in csv_names},
+            "best": best.meta(),
         }
         policies = {
             f"policy_seed_{s}.npz": policy_bytes(seed_policy(i)) for i, s in enumerate(seeds)
         }
+        policies.update(best.checkpoint_files())
         io.save_checkpoint(
             run_dir, step, arrays, meta, keep=config.keep_checkpoints, files=policies
         )
+
+    watch = io.DivergenceWatch(run_dir, config.on_divergence)
+
+    def check_divergence():
+        """Non-finite update metrics (once there was an update), parameters or returns."""
+        if step >= t_roll:
+            for j, name in enumerate(METRICS):
+                watch.note_values(name, seeds, host.metrics[:, j])
+        for m, net in enumerate(("actor", "critic")):
+            flat = [np.concatenate([np.ravel(x) for x in jax.tree.leaves(p[m])]) for p in params]
+            watch.note_values(f"{net} parameters", seeds, flat)
+        watch.note_values("episode return", seeds, host.ep_return)
+        watch.check(step)
 
     try:
         while step < config.total_steps:
@@ -903,6 +983,8 @@ def train(
                     logs["episodes"].write(row)
                     tb.write(step, {f"seed_{seeds[i]}/episode_return": host.ep_return[i]})
                     recent_return[i] = host.ep_return[i]
+                    if not math.isfinite(host.ep_return[i]):
+                        watch.note("episode return", [seeds[i]])
                     host.ep_return[i], host.ep_length[i], host.ret_acc[i] = 0.0, 0, 0.0
                     obs, info = env.reset()
                     host.obs_norm[i] = _observe(host, i, obs, config)
@@ -940,9 +1022,11 @@ def train(
                         {f"seed_{s}/{n}": v for n, v in scalars.items() if not math.isnan(v)}
                         | {f"seed_{s}/steps_per_s": sps},
                     )
+                check_divergence()
             if config.eval_episodes and step % config.eval_every == 0:
                 evaluate()
             if step % config.checkpoint_every == 0 or step == config.total_steps:
+                check_divergence()  # never checkpoint non-finite parameters
                 checkpoint()
             if step % 256 == 0 or step == config.total_steps:
                 bar.update(step - bar.n)

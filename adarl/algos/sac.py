@@ -15,6 +15,7 @@ steps (`update_every` steps, then `update_every` updates).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import jax
@@ -22,7 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from adarl.errors import UsageError, check_choice
+from adarl.envs.tasks import PHYSICS, VERSIONS
+from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
 from adarl.nets import mlp, rank
 from adarl.nets.regularisers import parseval_penalty
 from adarl.policy import LOG_STD_MAX, LOG_STD_MIN
@@ -38,6 +40,8 @@ class SACConfig:
     algo: str = "adarl"
     task: str = "hopper"
     dynamics: str = "paper"
+    physics: str = "consistent"  # consistent (recompile: masses follow geometry) or ompo
+    model_version: str = "v5"  # Gymnasium's v5 or v4 (the port of the paper's Gym v3) models
     seeds: tuple[int, ...] = (0,)
     total_steps: int = 1_000_000
     # the seeds form this many lanes (at most one per seed), each one vmapped update on its own
@@ -67,7 +71,16 @@ class SACConfig:
     adapt_rank: bool = False
     truncate_every: int = 1_000_000  # d_t, in policy-optimisation (gradient) steps
     beta: float = 0.98
-    rank_rule: str = "cumulative"
+    # energy (the default, docs/experiments/rank-rules.md), cumulative (the paper's Eq. 5),
+    # ratio (Eq. 7), energy-squared
+    rank_rule: str = "energy"
+    # the retain clause: a cut is kept only if the truncated network's relative output error on
+    # `retain_samples` replay rows is at most this; None (flag value `off`) accepts every cut
+    retain_tolerance: float | None = None
+    retain_samples: int = 1024
+    # envelope: one cosine over the whole run, warm-ups rise to it (ReLoRA); restart: a full
+    # warm-up + cosine in every iteration of d_t steps
+    lr_schedule: str = "envelope"
     warmup_steps: int = 2000  # learning-rate warm-up after each truncation
     lr_min_ratio: float = 0.1  # floor of the cosine decay, as a fraction of the learning rate
     schedule_first_iteration: bool = False  # warm-up + cosine before the first truncation too
@@ -87,15 +100,28 @@ class SACConfig:
     log_every: int = 5_000
     checkpoint_every: int = 50_000
     keep_checkpoints: int = 2
+    # a non-finite loss, parameter or return: stop (exit code 3) or continue (docs/reliability.md)
+    on_divergence: str = "stop"
 
     def validate(self) -> SACConfig:
         """Raise a one-line UsageError on any bad value."""
         from adarl.algos import ALGOS
 
+        check_numbers(self)
         check_choice("algo", self.algo, ALGOS)
+        check_choice("on-divergence", self.on_divergence, ON_DIVERGENCE)
         check_choice("activation", self.activation, mlp.ACTIVATIONS)
         check_choice("init", self.init, mlp.INITS)
         check_choice("rank rule", self.rank_rule, rank.RANK_RULES)
+        check_choice("physics", self.physics, PHYSICS)
+        check_choice("model version", self.model_version, VERSIONS)
+        check_choice("lr schedule", self.lr_schedule, rank.LR_SCHEDULES)
+        if self.retain_tolerance is not None and not (
+            np.isfinite(self.retain_tolerance) and self.retain_tolerance > 0
+        ):
+            raise UsageError(
+                f"retain-tolerance must be a finite number > 0 (or off), got {self.retain_tolerance}"
+            )
         positive = [
             "total_steps",
             "batch_size",
@@ -108,6 +134,7 @@ class SACConfig:
             "checkpoint_every",
             "eval_episodes",
             "lanes",
+            "retain_samples",
         ]
         for name in positive:
             if getattr(self, name) <= 0:
@@ -197,6 +224,10 @@ PRESETS: dict[str, dict] = {
     "parseval-1e-3": {"parseval_coef": 1e-3},
     "parseval-1e-4": {"parseval_coef": 1e-4},
     "parseval-1e-5": {"parseval_coef": 1e-5},
+    # The closest reproduction of what the paper ran: OMPO's schedules (Hopper amplitude 0.1),
+    # lengths written into the compiled model as OMPO does (default masses), Gymnasium's v4 models
+    # (the port of the Gym v3 tasks). Hyperparameters as `paper`. See docs/envs.md.
+    "paper-ompo": {"dynamics": "ompo", "physics": "ompo", "model_version": "v4"},
     # tiny budgets for tests and smoke runs
     "smoke": {
         "total_steps": 2_000,
@@ -446,11 +477,28 @@ def regulariser(spec: Spec, layers, stacked: bool):
 
 # ============================================================================ update
 def learning_rate(spec: Spec, state, base_lr: float):
-    """Constant before the first truncation; after each, warm-up from 0 then cosine
-    (`rank.restart_learning_rate`) over the d_t steps of the iteration."""
+    """The learning rate of the current update. Without rank adaptation it is constant. With it,
+    `lr_schedule` decides: `envelope` (default) follows one cosine over the run's gradient steps
+    and warms up to it after each truncation (`rank.envelope_learning_rate`, ReLoRA); `restart`
+    is constant before the first truncation and a full warm-up + cosine over each iteration of
+    d_t steps after it (`rank.restart_learning_rate`). `schedule_first_iteration` warms up at the
+    start too."""
     c = spec.config
     if not c.adapt_rank:
         return jnp.asarray(base_lr, jnp.float32)
+    if c.lr_schedule == "envelope":
+        warm_up = state["n_truncations"] > 0
+        if c.schedule_first_iteration:
+            warm_up = jnp.asarray(True)
+        return rank.envelope_learning_rate(
+            state["n_updates"],
+            state["iteration_start"],
+            base_lr,
+            c.warmup_steps,
+            total_updates(c),
+            c.lr_min_ratio,
+            warm_up,
+        )
     t = state["n_updates"] - state["iteration_start"]
     scheduled = rank.restart_learning_rate(
         t, base_lr, c.warmup_steps, c.truncate_every, c.lr_min_ratio
@@ -458,6 +506,26 @@ def learning_rate(spec: Spec, state, base_lr: float):
     if c.schedule_first_iteration:
         return scheduled
     return jnp.where(state["n_truncations"] > 0, scheduled, base_lr)
+
+
+def total_updates(config: SACConfig) -> int:
+    """Gradient steps in a whole run, as the loop makes them: chunks end at k·update_every (the
+    last at total_steps) and each chunk ending at or after `update_after` runs `update_every`."""
+    c = config
+    n_chunks = -(-c.total_steps // c.update_every)
+    if c.update_after > c.total_steps:
+        return 0
+    first = max(-(-c.update_after // c.update_every), 1)
+    return (n_chunks - first + 1) * c.update_every
+
+
+def n_truncations(config: SACConfig) -> int:
+    """How many truncations a run of this config makes: one each time the updates since the last
+    reach d_t, checked at chunk boundaries (so an iteration is d_t rounded up to update_every)."""
+    if not config.adapt_rank:
+        return 0
+    iteration = -(-config.truncate_every // config.update_every) * config.update_every
+    return total_updates(config) // iteration
 
 
 def update_step(spec: Spec, state: dict, _=None):
@@ -533,46 +601,94 @@ def act(spec: Spec, actor, masks, obs, key, deterministic: bool = False):
 def truncate(spec: Spec, state: dict):
     """AdaRL's rank-adaptation step on every bottleneck of actor and critics (one seed).
 
-    Each bottleneck is re-parameterised by `rank.truncate_bottleneck` (SVD, rank rule,
-    W1 = U_r√Σ_r, W2 = √Σ_r V_rᵀ). The target critics become a copy of the truncated critics
-    (as Spinning Up builds its target: a deep copy), so target and online networks have the same
-    shapes and ranks. Adam states are reset and the learning-rate schedule restarts; everything
-    else (replay buffer, α, counters) carries over (warm start).
-    Returns the new state and, per bottleneck, its spectrum and proposed/new rank.
+    For each bottleneck: the SVD of W1·W2 and the rank rule give a candidate rank
+    r_c = max(1, min(r_old, r̂)); the retain clause (`rank.retain_or_cut`) accepts it when the
+    network with only that bottleneck truncated to r_c changes its output by at most
+    `retain_tolerance` (relative error over `retain_samples` replay rows: the deterministic action
+    for the actor, each Q-network's values for the critics), else keeps r_old. The bottleneck is
+    then re-parameterised W1 = U_r√Σ_r, W2 = √Σ_r V_rᵀ at the chosen rank.
+    The target critics become a copy of the truncated critics (as Spinning Up builds its target:
+    a deep copy), so target and online networks have the same shapes and ranks. Adam states are
+    reset and the learning-rate schedule restarts; everything else (replay buffer, α, counters,
+    the update's key stream) carries over (warm start).
+    Returns the new state and, per bottleneck, (spectrum, proposed r̂, new rank, candidate rank,
+    relative error of the candidate).
     """
     c = spec.config
+    # the test sample has its own key, derived without advancing the update's stream
+    sample = replay.sample(
+        state["buffer"], jax.random.fold_in(state["key"], 0x7E7A1), c.retain_samples
+    )
+    obs, act = sample["obs"], sample["act"]
     report = {}
-    actor_trunk = list(state["actor"]["trunk"])
-    actor_masks = list(state["masks"]["actor"])
+
+    actor, actor_masks = state["actor"], state["masks"]["actor"]
+    reference = squash(spec, actor_forward(spec, actor, actor_masks, obs)[0])
+    actor_trunk, new_actor_masks = list(actor["trunk"]), list(actor_masks)
     for i, layer in enumerate(spec.actor):
         if layer[0] != "bottleneck":
             continue
-        p = actor_trunk[i]
-        w1, w2, m, s, proposed = rank.truncate_bottleneck(
-            p["w1"], p["w2"], actor_masks[i], c.beta, c.rank_rule
+        p = actor["trunk"][i]
+        old = actor_masks[i].sum().astype(jnp.int32)
+        u, s, vt = rank.spectrum(p["w1"], p["w2"], actor_masks[i])
+        proposed = rank.select_rank(s, c.beta, c.rank_rule)
+        candidate = rank.next_rank(old, proposed)
+        w1, w2, m = rank.reparameterise(u, s, vt, candidate, p["w1"].dtype)
+        trial_trunk = list(actor["trunk"])
+        trial_trunk[i] = dict(p, w1=w1, w2=w2)
+        trial_masks = list(actor_masks)
+        trial_masks[i] = m
+        trial = squash(
+            spec, actor_forward(spec, dict(actor, trunk=trial_trunk), trial_masks, obs)[0]
         )
-        actor_trunk[i], actor_masks[i] = dict(p, w1=w1, w2=w2), m
-        report[f"actor_{i}"] = (s, proposed, m.sum().astype(jnp.int32))
-    critic = list(state["critic"])
-    critic_masks = list(state["masks"]["critic"])
+        error = rank.relative_error(trial, reference)
+        new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
+        if c.retain_tolerance is not None:  # off: the candidate's factors, exactly as before
+            w1, w2, m = rank.reparameterise(u, s, vt, new, p["w1"].dtype)
+        actor_trunk[i], new_actor_masks[i] = dict(p, w1=w1, w2=w2), m
+        report[f"actor_{i}"] = (s, proposed, m.sum().astype(jnp.int32), candidate, error)
+
+    critic, critic_masks = state["critic"], state["masks"]["critic"]
+    reference = q_values(spec, critic, critic_masks, obs, act)  # (2, samples)
+    new_critic, new_critic_masks = list(critic), list(critic_masks)
     for i, layer in enumerate(spec.critic):
         if layer[0] != "bottleneck":
             continue
         p = critic[i]
-        trunc = jax.vmap(lambda a, b, m: rank.truncate_bottleneck(a, b, m, c.beta, c.rank_rule))
-        w1, w2, m, s, proposed = trunc(p["w1"], p["w2"], critic_masks[i])
-        critic[i], critic_masks[i] = dict(p, w1=w1, w2=w2), m
+        old = critic_masks[i].sum(axis=1).astype(jnp.int32)  # one rank per Q-network
+        u, s, vt = jax.vmap(rank.spectrum)(p["w1"], p["w2"], critic_masks[i])
+        proposed = jax.vmap(lambda x: rank.select_rank(x, c.beta, c.rank_rule))(s)
+        candidate = rank.next_rank(old, proposed)
+        reparam = jax.vmap(functools.partial(rank.reparameterise, dtype=p["w1"].dtype))
+        w1, w2, m = reparam(u, s, vt, candidate)
+        # both Q-networks truncated at layer i at once: each one's output depends on its own only
+        trial_layers, trial_masks = list(critic), list(critic_masks)
+        trial_layers[i] = dict(p, w1=w1, w2=w2)
+        trial_masks[i] = m
+        trial = q_values(spec, trial_layers, trial_masks, obs, act)
+        error = jax.vmap(rank.relative_error)(trial, reference)
+        new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
+        if c.retain_tolerance is not None:
+            w1, w2, m = reparam(u, s, vt, new)
+        new_critic[i], new_critic_masks[i] = dict(p, w1=w1, w2=w2), m
         for q in range(2):
-            report[f"q{q + 1}_{i}"] = (s[q], proposed[q], m[q].sum().astype(jnp.int32))
-    actor = dict(state["actor"], trunk=actor_trunk)
+            report[f"q{q + 1}_{i}"] = (
+                s[q],
+                proposed[q],
+                m[q].sum().astype(jnp.int32),
+                candidate[q],
+                error[q],
+            )
+
+    actor = dict(actor, trunk=actor_trunk)
     state = dict(
         state,
         actor=actor,
-        critic=critic,
-        critic_target=critic,
-        masks={"actor": actor_masks, "critic": critic_masks},
+        critic=new_critic,
+        critic_target=new_critic,
+        masks={"actor": new_actor_masks, "critic": new_critic_masks},
         opt_actor=_adam().init(actor),
-        opt_critic=_adam().init(critic),
+        opt_critic=_adam().init(new_critic),
         iteration_start=state["n_updates"],
         n_truncations=state["n_truncations"] + 1,
     )

@@ -94,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
         write_evaluation,
     )
     from adarl.evaluation.runs import find_runs
+    from adarl.train.io import check_writable_file
 
     spec = EvalSpec.from_options(
         args.dynamics,
@@ -110,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--out names one CSV but {len(runs)} runs were found; leave it out")
         if Path(args.out).is_dir():
             raise UsageError(f"--out {args.out} is a folder; give a .csv file name")
+    for run_ in runs:  # before evaluating, which takes long
+        check_writable_file(Path(args.out) if args.out else default_output(run_, spec))
     command = command_line(args)
     tables = evaluate_runs(runs, spec, workers=args.workers)
     for run_, table in zip(runs, tables):

@@ -12,7 +12,7 @@ import os
 import sys
 
 from adarl import __version__
-from adarl.errors import UsageError
+from adarl.errors import RunFailed, UsageError
 from adarl.runtime import configure_xla
 
 COMMANDS = {
@@ -73,6 +73,13 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as exc:
         print(f"adarl {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except RunFailed as exc:  # file-system error at run time (1), divergence (3)
+        print(f"adarl {args.command}: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except OSError as exc:  # any other file-system error: one line, exit 1
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"adarl {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"adarl {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -46,9 +46,11 @@ def run(args: argparse.Namespace) -> int:
     from adarl.evaluation import grid
     from adarl.evaluation.play import check_video_path, play, prepare_backend
     from adarl.evaluation.runs import load_run, policy_file, policy_files, select_checkpoint
+    from adarl.train.io import check_writable_file
 
     prepare_backend()  # before anything imports MuJoCo
     check_video_path(Path(args.video))
+    check_writable_file(args.video, "--video")
     run_ = load_run(args.run_dir)
     seed = args.seed
     if seed is None:
@@ -57,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     holds = dict(grid.parse_hold(h) for h in args.hold)
     dynamics = grid.point_label(args.dynamics, holds)
 
-    from adarl.envs import parse_dynamics
+    from adarl.envs import env_options, parse_dynamics
     from adarl.policy import load
 
     parse_dynamics(dynamics, run_.task)
@@ -72,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
         height=args.height,
         fps=args.fps,
         max_steps=args.max_episode_steps,
+        overrides=env_options(run_.config),  # the run's physics and model version
     )
     for k, ep in enumerate(episodes):
         params = ", ".join(f"{p}={v:g}" for p, v in ep.params.items())

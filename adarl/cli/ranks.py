@@ -16,7 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
-    """Lines of a table: step, layer, then one column per seed with `old→new` ranks."""
+    """Lines of a table: step, layer, then one column per seed with `old→new` ranks; a cut the
+    retain clause refused shows as `old→old (retained r_c, err e)`."""
     from adarl.train.io import read_csv
     from adarl.train.sac_loop import load_run_config
 
@@ -37,6 +38,8 @@ def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
     table: dict[tuple[int, str], dict[int, str]] = {}
     for r in rows:
         cell = f"{r['old_rank']}→{r['new_rank']}"
+        if r.get("decision") == "retained":  # runs from before the retain clause have no column
+            cell += f" (retained {r['candidate_rank']}, err {float(r['error']):.3g})"
         table.setdefault((int(r["step"]), r["layer"]), {})[int(r["seed"])] = cell
     header = ["step", "layer", *[f"seed {s}" for s in seeds]]
     body = [
@@ -48,6 +51,9 @@ def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
     lines = [fmt(header), fmt(["-" * w for w in widths])] + [fmt(row) for row in body]
     if not body:
         lines.append("(no truncation yet)")
+    retained = sum(r.get("decision") == "retained" for r in rows)
+    if retained:
+        lines.append(f"{retained} proposed cut(s) retained by the retain clause")
     return lines
 
 

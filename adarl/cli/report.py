@@ -25,6 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--skip-incomplete", action="store_true",
         help="leave out runs without a complete checkpoint instead of failing",
     )  # fmt: skip
+    parser.add_argument(
+        "--rnac-checkpoint", default="final", metavar="final|best",
+        help="RNAC's final checkpoint (default), or its best by evaluation as its original reports",
+    )  # fmt: skip
 
 
 def command_line(args: argparse.Namespace) -> str:
@@ -35,6 +39,8 @@ def command_line(args: argparse.Namespace) -> str:
         parts += ["--seed", str(args.seed)]
     if args.skip_incomplete:
         parts.append("--skip-incomplete")
+    if args.rnac_checkpoint != "final":
+        parts += ["--rnac-checkpoint", args.rnac_checkpoint]
     return shlex.join(parts)
 
 
@@ -46,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         skip_incomplete=args.skip_incomplete,
         command=command_line(args),
+        rnac_checkpoint=args.rnac_checkpoint,
     )
     out = build_report(args.run_dirs, args.out, options)
     print(f"report written to {out}/index.md")

@@ -13,7 +13,8 @@ HELP = "run a sweep (tasks x algorithms x seeds) from a YAML file or preset, loc
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = (
-        "presets: smoke, paper-hopper-small, paper-table1, fixed-rank-sweep, rank-rule-ablation\n"
+        "presets: smoke, paper-hopper-small, paper-table1, fixed-rank-sweep, fixed-rank-u,\n"
+        "  rank-rule-ablation\n"
         "examples:\n"
         "  adarl sweep smoke --dry-run\n"
         "  adarl sweep paper-hopper-small                 # again after a crash: resumes\n"
@@ -103,9 +104,11 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
 def run(args: argparse.Namespace) -> int:
     from adarl.sweeps import manifest, runner, spec
     from adarl.sweeps.backends import default_workers, make_backend
+    from adarl.train.io import check_writable_dir
 
     sweep = spec.load(args.spec)
     out = Path(args.out) if args.out else Path("sweeps") / sweep.name
+    check_writable_dir(out)  # a dry run too: it promises what a real one would do
     manifest.check_compatible(manifest.read(out), sweep, out)
     runner.check_existing_runs(sweep, out)
     if args.dry_run:

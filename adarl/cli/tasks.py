@@ -1,10 +1,14 @@
-"""`adarl tasks`: the tasks, their parameters and defaults, schedule formulas and intrinsic ranks."""
+"""`adarl tasks`: the tasks, their parameters and defaults, schedule formulas, intrinsic ranks,
+model versions and the masses at the nominal point under each physics."""
 
 from __future__ import annotations
 
 import json
 
-HELP = "List the tasks, their physical parameters, dynamics schedules and intrinsic ranks."
+HELP = (
+    "List the tasks, their physical parameters, dynamics schedules, intrinsic ranks, model "
+    "versions and nominal masses under each physics."
+)
 
 
 def add_arguments(parser) -> None:
@@ -17,8 +21,13 @@ def run(args) -> int:
     from adarl.envs.tasks import get_task, list_tasks
 
     tasks = [get_task(name) for name in (args.names or list_tasks())]
+    masses = {t.name: _masses(t.name) for t in tasks}
     if args.json:
-        print(json.dumps([_as_dict(t) for t in tasks], indent=2, ensure_ascii=False))
+        out = [
+            _as_dict(t) | {"nominal_masses": masses[t.name], "adarl_budget": _adarl_budget(t.name)}
+            for t in tasks
+        ]
+        print(json.dumps(out, indent=2, ensure_ascii=False))
         return 0
     for i, task in enumerate(tasks):
         if i:
@@ -51,7 +60,50 @@ def run(args) -> int:
                 f"  medium: air, density {density:g} kg/m^3, viscosity {viscosity:g} Pa s "
                 "(so wind acts; it also adds drag at zero wind; not in 'default')"
             )
+        v4 = get_task(task.name, "v4")
+        print(
+            f"  model versions: v5 {task.gym_id} obs {task.obs_dim} (default), "
+            f"v4 {v4.gym_id} obs {v4.obs_dim}"
+        )
+        _print_masses(masses[task.name], "torso_length" in task.varied)
+        print(f"  {_adarl_budget(task.name)}")
     return 0
+
+
+def _adarl_budget(task: str) -> str:
+    """AdaRL's default budget on the task and how many truncations it makes."""
+    from adarl.algos import SAC_FAMILY, TASK_DEFAULTS, sac
+
+    budget = TASK_DEFAULTS["adarl"][task]
+    config = sac.SACConfig(**SAC_FAMILY["adarl"], task=task, **budget)
+    return (
+        f"adarl default budget: {budget['total_steps']:,} steps, d_t = "
+        f"{budget['truncate_every']:,} gradient steps ({sac.n_truncations(config)} truncations)"
+    )
+
+
+def _masses(task: str) -> dict[str, dict[str, float]]:
+    """{physics: {body: kg}} at the nominal point (the same on v4 and v5 models)."""
+    from adarl.envs.model import nominal_masses
+    from adarl.envs.tasks import PHYSICS
+
+    return {physics: nominal_masses(task, physics) for physics in PHYSICS}
+
+
+def _print_masses(masses: dict[str, dict[str, float]], lengths_vary: bool) -> None:
+    consistent, ompo = masses["consistent"], masses["ompo"]
+    totals = f"{sum(consistent.values()):.3f} / {sum(ompo.values()):.3f}"
+    print("  masses at the nominal point (kg), physics consistent / ompo:")
+    if consistent == ompo:
+        why = (
+            "the nominal lengths are Gymnasium's; other lengths differ"
+            if lengths_vary
+            else "no length varies"
+        )
+        print(f"    total {totals}: every body as in Gymnasium's model under both ({why})")
+        return
+    bodies = ", ".join(f"{b} {consistent[b]:.3f} / {ompo[b]:.3f}" for b in consistent)
+    print(f"    {bodies}; total {totals}")
 
 
 def _as_dict(task) -> dict:

@@ -71,15 +71,24 @@ def _metavar(f) -> str:
 
 
 def _default_text(f) -> str:
+    from adarl.algos import TASK_DEFAULTS
+
     value = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-    return ",".join(map(str, value)) if isinstance(value, tuple) else str(value)
+    text = ",".join(map(str, value)) if isinstance(value, tuple) else str(value)
+    per_task = [
+        f"{algo} on {task}: {fields[f.name]}"
+        for algo, tasks in TASK_DEFAULTS.items()
+        for task, fields in tasks.items()
+        if f.name in fields
+    ]
+    return text + (f" ({'; '.join(per_task)})" if per_task else "")
 
 
 def parse_value(name: str, text: str, type_text: str):
     """Convert a flag's text to the field's type (`int`, `float`, `bool`, tuples, optionals)."""
     t = type_text.replace(" ", "")
     flag = "--" + name.replace("_", "-")
-    if t.endswith("|None") and text.lower() in ("none", ""):
+    if t.endswith("|None") and text.lower() in ("none", "off", ""):
         return None
     t = t.removesuffix("|None")
     try:
@@ -139,7 +148,7 @@ def parse_int_list(text: str) -> tuple[int, ...]:
 
 def build_config(args: argparse.Namespace):
     """defaults <- the algorithm's definition <- --preset <- flags; returns (family, config)."""
-    from adarl.algos import ALGOS, SAC_FAMILY
+    from adarl.algos import ALGOS, SAC_FAMILY, TASK_DEFAULTS
 
     algo = check_choice("algo", args.algo, ALGOS)
     family = "rnac" if algo == "rnac" else "sac"
@@ -150,16 +159,22 @@ def build_config(args: argparse.Namespace):
         values.update(SAC_FAMILY[algo])
     preset = args.preset or ("paper" if family == "sac" else "default")
     check_choice(f"preset for {algo}", preset, module.PRESETS)
-    values.update(module.PRESETS[preset])
     hints = typing.get_type_hints(cls)
     fields = {f.name for f in dataclasses.fields(cls)}
+    flags = {}
     for key, text in vars(args).items():
         if not key.startswith("cfg_") or text is None:
             continue
         name = key[4:]
         if name not in fields:
             raise UsageError(f"--{name.replace('_', '-')} does not apply to --algo {algo}")
-        values[name] = parse_value(name, text, _type_text(hints[name]))
+        flags[name] = parse_value(name, text, _type_text(hints[name]))
+    # the algorithm's per-task defaults sit below the preset and the flags
+    task = flags.get("task", module.PRESETS[preset].get("task", values.get("task")))
+    task = task or next(f.default for f in dataclasses.fields(cls) if f.name == "task")
+    values.update(TASK_DEFAULTS.get(algo, {}).get(task, {}))
+    values.update(module.PRESETS[preset])
+    values.update(flags)
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
     return family, cls(**values).validate()
 
@@ -198,7 +213,15 @@ def config_from_run(run_dir: Path):
     family = "rnac" if algo == "rnac" else "sac"
     cls = _config_classes()[family]
     names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(values) - names - {"algo", "format_version", "adarl_version", "command"})
+    if unknown:  # a typo or a hand edit: dropping it silently would change the run
+        raise UsageError(
+            f"{Path(run_dir) / 'config.yaml'} has unknown field {unknown[0]!r}; allowed: the "
+            f"config fields of --algo {algo} (adarl train --help)"
+        )
     kept = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in names}
+    if family == "sac" and "lr_schedule" not in values:  # written before the field existed
+        kept["lr_schedule"] = "restart"
     return family, cls(**kept).validate()
 
 

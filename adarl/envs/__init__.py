@@ -2,6 +2,7 @@
 
     env = make("hopper", dynamics="paper", seed=0)
     obs, info = env.reset()          # info["dynamics"], info["episode_index"]
+    make("hopper", "ompo", physics="ompo", version="v4")  # as the paper's OMPO code ran it
 
 Task facts and schedules import without MuJoCo; `make`/`make_vec` load it on first use.
 """
@@ -10,14 +11,17 @@ import importlib
 
 from adarl.envs.dynamics import DynamicsSchedule, parse_dynamics
 from adarl.envs.params import PARAMS, Sinusoid
-from adarl.envs.tasks import TaskSpec, get_task, list_tasks
+from adarl.envs.tasks import PHYSICS, VERSIONS, TaskSpec, env_options, get_task, list_tasks
 
 __all__ = [
     "PARAMS",
+    "PHYSICS",
+    "VERSIONS",
     "DynamicsEnv",
     "DynamicsSchedule",
     "Sinusoid",
     "TaskSpec",
+    "env_options",
     "get_task",
     "list_tasks",
     "make",

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adarl.envs.params import PARAMS, Sinusoid
+from adarl.envs.params import PARAMS, Sinusoid, check_plausible
 from adarl.envs.tasks import get_task
 from adarl.errors import UsageError, check_choice
 
@@ -135,7 +135,9 @@ class DynamicsSchedule:
         spec = get_task(self.task)
         for name in values:
             _check_name(spec, name)
-        values = {k: PARAMS[k].check(v) for k, v in values.items()}
+        values = {
+            k: check_plausible(k, PARAMS[k].check(v), spec.params[k]) for k, v in values.items()
+        }
         suffix = ",".join(f"{k}={v!r}" for k, v in values.items())
         return DynamicsSchedule(
             task=self.task,

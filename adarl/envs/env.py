@@ -1,10 +1,11 @@
-"""The task env: Gymnasium's v5 MuJoCo env whose model is recompiled at reset when the schedule's
-parameters change, plus the 1000-step time limit.
+"""The task env: Gymnasium's v5 (or v4) MuJoCo env whose model is recompiled (or, under `ompo`
+physics, edited) at reset when the schedule's parameters change, plus the 1000-step time limit.
 
 `make` builds Gymnasium's env class directly (no PassiveEnvChecker / OrderEnforcing / TimeLimit
 wrappers) and wraps it once in `DynamicsEnv`, which counts steps itself. Per step the wrapper only
 adds two entries to `info`; per reset it evaluates the schedule and, if the parameters changed,
-compiles a new model (about 0.5-1 ms) and swaps it into the env, reusing the `MjData` buffers.
+compiles a new model (about 0.5-1 ms) and swaps it into the env, reusing the `MjData` buffers;
+under `ompo` physics it writes them into the env's own compiled model instead (`ModelEditor`).
 """
 
 from __future__ import annotations
@@ -18,9 +19,9 @@ import numpy as np
 from gymnasium.envs.registration import load_env_creator
 
 from adarl.envs.dynamics import DynamicsSchedule, parse_dynamics
-from adarl.envs.model import ModelBuilder
-from adarl.envs.tasks import TaskSpec, get_task
-from adarl.errors import UsageError
+from adarl.envs.model import ModelBuilder, ModelEditor
+from adarl.envs.tasks import PHYSICS, TaskSpec, get_task
+from adarl.errors import UsageError, check_choice
 
 #: MuJoCo's full integration state: qpos, qvel, act, time, warmstart, ctrl, applied forces, ...
 STATE_SIG = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -35,7 +36,8 @@ class DynamicsEnv(gymnasium.Wrapper):
     """A Gymnasium MuJoCo env following a `DynamicsSchedule`, one parameter set per episode.
 
     `info["dynamics"]` (the episode's parameter dict, shared: do not mutate it) and
-    `info["episode_index"]` are set at every reset and step.
+    `info["episode_index"]` are set at every reset and step. `physics` is how parameters reach
+    the model: `consistent` recompiles it, `ompo` edits the env's compiled model in place.
     """
 
     def __init__(
@@ -45,17 +47,21 @@ class DynamicsEnv(gymnasium.Wrapper):
         schedule: DynamicsSchedule,
         seed: int | None = 0,
         max_episode_steps: int = 1000,
+        physics: str = "consistent",
     ):
         super().__init__(env)
         self.task = task
         self.schedule = schedule
+        self.physics = check_choice("physics", physics, PHYSICS)
         self.max_episode_steps = int(max_episode_steps)
         self._raw = env.unwrapped
-        self._builder = (
-            None
-            if schedule.mode == "default"
-            else ModelBuilder(task, self._raw.fullpath, textures=self._raw.render_mode is not None)
-        )
+        if schedule.mode == "default":
+            self._builder = None
+        elif physics == "ompo":
+            self._builder = ModelEditor(task, self._raw.model)
+        else:
+            textures = self._raw.render_mode is not None
+            self._builder = ModelBuilder(task, self._raw.fullpath, textures=textures)
         self._pending_seed = seed  # used by the first reset without a seed
         self._schedule_seed = (
             int(seed) if seed is not None else int(np.random.SeedSequence().entropy)
@@ -65,7 +71,7 @@ class DynamicsEnv(gymnasium.Wrapper):
         self._params: dict[str, float] | None = None  # parameters of the installed model
         self._key: tuple | None = None
         self._elapsed = 0
-        self.compiles = 0  # number of models compiled so far
+        self.compiles = 0  # number of models compiled (ompo: edited) so far
         self.compile_seconds = 0.0  # CPU time spent compiling and swapping them in
 
     # ---- public attributes --------------------------------------------------------------
@@ -120,6 +126,8 @@ class DynamicsEnv(gymnasium.Wrapper):
         state = {
             "version": _STATE_VERSION,
             "task": self.task.name,
+            "model_version": self.task.version,
+            "physics": self.physics,
             "schedule": self.schedule.name,
             "episode_index": self._index,
             "advance": self._advance,
@@ -146,10 +154,18 @@ class DynamicsEnv(gymnasium.Wrapper):
             raise UsageError(
                 f"bad env state version {state.get('version')!r}; allowed: {_STATE_VERSION}"
             )
-        for key, mine in (("task", self.task.name), ("schedule", self.schedule.name)):
-            if state[key] != mine:
+        expected = {
+            "task": self.task.name,
+            "model_version": self.task.version,
+            "physics": self.physics,
+            "schedule": self.schedule.name,
+        }
+        for key, mine in expected.items():
+            # states saved before the version and physics switches are v5 and consistent
+            theirs = state.get(key, {"model_version": "v5", "physics": "consistent"}.get(key))
+            if theirs != mine:
                 raise UsageError(
-                    f"env state is for {key} {state[key]!r}; allowed: {mine!r} (this env's)"
+                    f"env state is for {key} {theirs!r}; allowed: {mine!r} (this env's)"
                 )
         self._index, self._advance = int(state["episode_index"]), bool(state["advance"])
         self._schedule_seed, self._pending_seed = int(state["schedule_seed"]), state["pending_seed"]
@@ -227,17 +243,28 @@ def make(
     *,
     max_episode_steps: int = 1000,
     render_mode: str | None = None,
+    physics: str = "consistent",
+    version: str = "v5",
     **overrides: float,
 ) -> DynamicsEnv:
     """Task env following `dynamics` (a name like "paper" or "fixed:torso_length=0.5", or a
     `DynamicsSchedule`), with `overrides` fixed on top. `seed` seeds the first reset and the
-    schedule's draws: the same seed gives the same parameter sequence. A task named `gym:<id>` is
-    any registered Gymnasium env with fixed dynamics (`adarl.envs.plain`)."""
+    schedule's draws: the same seed gives the same parameter sequence. `physics`: `consistent`
+    (recompile, masses follow geometry) or `ompo` (edit the compiled default model as OMPO does);
+    `version`: Gymnasium's `v5` or `v4` models. A task named `gym:<id>` is any registered
+    Gymnasium env with fixed dynamics (`adarl.envs.plain`)."""
+    check_choice("physics", physics, PHYSICS)
     if isinstance(task, str) and task.startswith("gym:"):
         from adarl.envs.plain import make_plain
 
+        if (physics, version) != ("consistent", "v5"):
+            raise UsageError(
+                f"task {task!r} with physics {physics!r} and model version {version!r} does not "
+                "exist; allowed: physics 'consistent' and version 'v5' for gym: tasks (the "
+                "switches apply to hopper, walker2d, ant, humanoid)"
+            )
         return make_plain(task, dynamics, seed, max_episode_steps=max_episode_steps, **overrides)
-    spec = get_task(task)
+    spec = get_task(task, version)
     schedule = parse_dynamics(dynamics, spec.name).with_overrides(**overrides)
     if (
         isinstance(max_episode_steps, bool)
@@ -253,7 +280,9 @@ def make(
     raw = load_env_creator(gym_spec.entry_point)(render_mode=render_mode)
     raw.spec = copy.copy(gym_spec)
     raw.spec.max_episode_steps = max_episode_steps
-    return DynamicsEnv(raw, spec, schedule, seed=seed, max_episode_steps=max_episode_steps)
+    return DynamicsEnv(
+        raw, spec, schedule, seed=seed, max_episode_steps=max_episode_steps, physics=physics
+    )
 
 
 def make_vec(
@@ -262,8 +291,9 @@ def make_vec(
     seeds: list[int] = (0,),
     **overrides,
 ) -> gymnasium.vector.SyncVectorEnv:
-    """One `make(task, dynamics, seed, **overrides)` env per seed, stepped together (bad input
-    raises from the first `make`, before any model is built)."""
+    """One `make(task, dynamics, seed, **overrides)` env per seed, stepped together; `overrides`
+    may include `physics=` and `version=` (bad input raises from the first `make`, before any
+    model is built)."""
     seeds = list(seeds)
     if not seeds:
         raise UsageError("bad seeds []; allowed: a non-empty list of integers >= 0")

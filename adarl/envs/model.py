@@ -15,6 +15,10 @@ Physics: gravity g -> opt.gravity = (0, 0, -g); wind W -> opt.wind = (-W, 0, 0);
 air (density 1.2, viscosity 2e-5); mass_scale multiplies every geom density (hence body masses and
 inertias); friction_scale every geom friction; damping_scale every joint damping; stiffness sets the
 task's stiffened joints' stiffness with the task's spring reference.
+
+`ompo` physics (`ModelEditor`) instead writes the same parameters into the compiled default model,
+as OMPO's `*_random.py` envs do: lengths only move `body_pos` and resize `geom_size`, so masses,
+inertias and the bounding radii `geom_rbound` stay those of Gymnasium's robot.
 """
 
 from __future__ import annotations
@@ -26,7 +30,8 @@ import mujoco
 import numpy as np
 from gymnasium.envs.mujoco.mujoco_env import expand_model_path
 
-from adarl.envs.tasks import TaskSpec, get_task
+from adarl.envs.tasks import PHYSICS, TaskSpec, get_task
+from adarl.errors import check_choice
 
 #: Gymnasium's XML file of each task (its v5 env class default).
 XML_FILES = {
@@ -35,6 +40,14 @@ XML_FILES = {
     "ant": "ant.xml",
     "humanoid": "humanoid.xml",
 }
+#: The -v4 env classes' XML files: only Walker2d's differs (right foot friction 0.9, not 1.9).
+XML_FILES_V4 = XML_FILES | {"walker2d": "walker2d.xml"}
+
+
+def _xml_path(task: TaskSpec) -> str:
+    """Full path of Gymnasium's XML for `task` at its model version."""
+    files = XML_FILES_V4 if task.version == "v4" else XML_FILES
+    return expand_model_path(files[task.name])
 
 
 @dataclass(frozen=True)
@@ -67,9 +80,7 @@ class ModelBuilder:
         """`textures=False` drops the (visual-only, slow to generate) textures: use it when the
         model is never rendered."""
         self.task = task if isinstance(task, TaskSpec) else get_task(task)
-        self.spec = mujoco.MjSpec.from_file(
-            xml_path or expand_model_path(XML_FILES[self.task.name])
-        )
+        self.spec = mujoco.MjSpec.from_file(xml_path or _xml_path(self.task))
         if not textures:
             _strip_textures(self.spec)
         self._base = _Snapshot(self.spec, self.task)
@@ -85,11 +96,112 @@ class ModelBuilder:
 
 
 def compile_model(
-    task: str, params: dict[str, float] | None = None, textures: bool = False
+    task: str,
+    params: dict[str, float] | None = None,
+    textures: bool = False,
+    *,
+    physics: str = "consistent",
+    version: str = "v5",
 ) -> mujoco.MjModel:
-    """One-off `ModelBuilder(task).compile(defaults | params)`."""
-    spec = get_task(task)
-    return ModelBuilder(spec, textures=textures).compile(dict(spec.params) | dict(params or {}))
+    """One-off model of `task` at defaults | `params`: `ModelBuilder(task).compile(...)`, or under
+    `ompo` physics Gymnasium's compiled model edited by `ModelEditor`."""
+    check_choice("physics", physics, PHYSICS)
+    spec = get_task(task, version)
+    params = dict(spec.params) | dict(params or {})
+    if physics == "ompo":
+        return ModelEditor(spec, mujoco.MjModel.from_xml_path(_xml_path(spec))).compile(params)
+    return ModelBuilder(spec, textures=textures).compile(params)
+
+
+def nominal_masses(task: str, physics: str, version: str = "v5") -> dict[str, float]:
+    """Body masses (kg, by body name, world left out) at the task's nominal point, the centroid of
+    its `paper` schedule, under `physics`."""
+    spec = get_task(task, version)
+    nominal = {p: s.center for p, s in spec.schedules["paper"].items()}
+    model = compile_model(task, nominal, physics=physics, version=version)
+    return {
+        model.body(i).name or f"body{i}": float(model.body_mass[i]) for i in range(1, model.nbody)
+    }
+
+
+#: Compiled fields `ModelEditor` writes (all restored from the default model first).
+_EDITED = (
+    "body_pos",
+    "geom_size",
+    "body_mass",
+    "body_inertia",
+    "geom_friction",
+    "dof_damping",
+    "dof_dampingpoly",
+    "jnt_stiffness",
+    "qpos_spring",
+)
+
+
+class ModelEditor:
+    """Writes parameters into one compiled `MjModel` in place, the way OMPO does (`ompo` physics).
+
+    OMPO (Non_stationary_env/hopper_random.py, walker2d_random.py) sets, at each reset,
+    ``body_pos[torso].z = 1.05 + L``, ``body_pos[thigh].z = -L`` (both thighs on Walker2d),
+    ``geom_size[torso_geom][1] = L`` and ``geom_size[foot][1] = F`` (both feet), and
+    (ant_random.py, humanoid_random.py) ``opt.gravity = (0, 0, -g)``, ``opt.wind = (-W, 0, 0)``
+    with air (density 1.2, viscosity 2e-5). Nothing is recompiled: masses, inertias, `geom_rbound`
+    (which MuJoCo's plane-contact filter reads, in 2.1 as in 4.0) and the other derived constants
+    stay the default model's. The generic parameters scale the compiled fields they act on
+    (`body_mass` and `body_inertia`, `geom_friction`, `dof_damping`); `stiffness` writes
+    `jnt_stiffness` and `qpos_spring`. Every field is written absolutely from a snapshot of the
+    default model, so a parameter at its default leaves its fields at Gymnasium's values.
+    """
+
+    def __init__(self, task: str | TaskSpec, model: mujoco.MjModel):
+        self.task = task if isinstance(task, TaskSpec) else get_task(task)
+        self.model = model
+        self._base = {name: np.array(getattr(model, name)) for name in _EDITED}
+        opt = model.opt
+        self._option = (np.array(opt.gravity), np.array(opt.wind), opt.density, opt.viscosity)
+        layout = LAYOUTS.get(self.task.name)
+        self._layout = layout
+        if layout:
+            self._torso = model.body(layout.torso_body).id
+            self._torso_geom = model.geom(layout.torso_geom).id
+            self._hips = [model.body(n).id for n in layout.hip_bodies]
+            self._feet = [model.geom(n).id for n in layout.foot_geoms]
+            # 1.25 - 0.2 = 1.05: OMPO's hip height, the torso's lower end
+            self._hip_z = float(model.body_pos[self._torso][2] + model.body_pos[self._hips[0]][2])
+        self._stiff = [
+            (model.joint(n).id, model.jnt_qposadr[model.joint(n).id])
+            for n in self.task.stiffness_joints
+        ]
+
+    def compile(self, params: dict[str, float]) -> mujoco.MjModel:
+        """Write `params` (the task's full parameter dict) into the model; returns the same model."""
+        m, base, defaults = self.model, self._base, self.task.params
+        for name, value in base.items():
+            getattr(m, name)[...] = value
+        if self._layout:
+            length = params["torso_length"]
+            if length != defaults["torso_length"]:
+                m.body_pos[self._torso, 2] = self._hip_z + length
+                m.body_pos[self._hips, 2] = -length
+                m.geom_size[self._torso_geom, 1] = length
+            if params["foot_length"] != defaults["foot_length"]:
+                m.geom_size[self._feet, 1] = params["foot_length"]
+        m.body_mass[:] = base["body_mass"] * params["mass_scale"]
+        m.body_inertia[:] = base["body_inertia"] * params["mass_scale"]
+        m.geom_friction[:] = base["geom_friction"] * params["friction_scale"]
+        m.dof_damping[:] = base["dof_damping"] * params["damping_scale"]
+        m.dof_dampingpoly[:] = base["dof_dampingpoly"] * params["damping_scale"]
+        k = params.get("stiffness", 0.0)
+        if k != 0.0:
+            for joint, qpos_adr in self._stiff:
+                m.jnt_stiffness[joint] = k
+                m.qpos_spring[qpos_adr] = self.task.spring_ref
+        gravity, wind, density, viscosity = self._option
+        opt = m.opt
+        opt.gravity = gravity if "gravity" not in params else [0.0, 0.0, -params["gravity"]]
+        opt.wind = wind if "wind" not in params else [0.0 - params["wind"], 0.0, 0.0]
+        opt.density, opt.viscosity = self.task.medium or (density, viscosity)
+        return m
 
 
 class _Snapshot:

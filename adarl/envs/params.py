@@ -58,6 +58,32 @@ PARAMS: dict[str, Param] = {
 }
 
 
+#: A value a user gives (``fixed:``, ``:NAME=VALUE``, ``--hold``) must lie within this factor of
+#: the task's default: |value| <= 10 x scale, and value >= scale / 10 where it must be > 0.
+PLAUSIBLE_FACTOR = 10.0
+#: The scale of a parameter whose default is 0 (wind, stiffness): a typical magnitude instead.
+ZERO_DEFAULT_SCALE = {"wind": 2.0, "stiffness": 10.0}
+
+
+def check_plausible(name: str, value: float, default: float) -> float:
+    """`value` if it is within `PLAUSIBLE_FACTOR` of `default` (the task's), else a one-line
+    `UsageError`: values far outside make MuJoCo unstable (a flood of warnings, NaN states)."""
+    scale = abs(default) or ZERO_DEFAULT_SCALE.get(name, 1.0)
+    high = PLAUSIBLE_FACTOR * scale
+    low = (
+        scale / PLAUSIBLE_FACTOR
+        if PARAMS[name].strict
+        else (-high if PARAMS[name].lower is None else 0.0)
+    )
+    if not low <= value <= high:
+        raise UsageError(
+            f"implausible value {value:g} for {name}; allowed: {low:g} to {high:g} "
+            f"(within {PLAUSIBLE_FACTOR:g}x of {'its default' if default else 'a typical'} "
+            f"{scale:g}; docs/envs.md)"
+        )
+    return value
+
+
 @dataclass(frozen=True)
 class Sinusoid:
     """Episode-indexed parameter value ``center + amplitude * sin(frequency * i)``."""

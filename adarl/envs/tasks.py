@@ -6,17 +6,27 @@ Schedules (AdaRL appendix "Model Uncertainty Setting", i = episode index):
   Ant       g 14.715 + 4.905·sin(0.5i), W 1 + 0.2·sin(0.5i)
   Humanoid  g 14.715 + 4.905·sin(0.5i), W 1 + 0.5·sin(0.5i)
 Lengths are capsule half-lengths (Gymnasium: Hopper torso 0.2 / foot 0.195, Walker2d 0.2 / 0.1).
+
+Model versions: `v5` (default) and `v4`, Gymnasium's port of the Gym v3 tasks the paper ran.
+Physics: `consistent` recompiles the model (masses follow geometry), `ompo` edits the compiled
+default model as OMPO does (masses and inertias stay the default robot's); see adarl.envs.model.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from adarl.envs.params import PARAMS, Sinusoid
 from adarl.errors import check_choice
 
 #: Generic robustness parameters every task has, at their no-change values.
 GENERIC_DEFAULTS = {"mass_scale": 1.0, "friction_scale": 1.0, "damping_scale": 1.0}
+
+#: Gymnasium model versions: v5 (default) and v4 (the port of Gym v3, which the paper ran).
+VERSIONS = ("v5", "v4")
+#: How parameters reach the model: recompiled from an edited MjSpec, or written into the
+#: compiled default model as OMPO does.
+PHYSICS = ("consistent", "ompo")
 
 #: Air, as OMPO sets it for Ant and Humanoid so that MuJoCo's wind acts: (density kg/m^3, viscosity Pa s).
 AIR = (1.2, 2e-5)
@@ -35,6 +45,8 @@ class TaskSpec:
     medium: tuple[float, float] | None = None  # (density, viscosity) outside `default` mode
     stiffness_joints: tuple[str, ...] = ()
     spring_ref: float = 0.0  # rad; the spring reference of `stiffness_joints`
+    version: str = "v5"  # Gymnasium model version of `gym_id` and `obs_dim`
+    v4_obs_dim: int = 0  # observation size of the task's -v4 env
     intrinsic_rank: int = field(init=False)
 
     def __post_init__(self):
@@ -88,6 +100,7 @@ TASKS: dict[str, TaskSpec] = {
             # RNAC's Hopper sweep writes springref 2.0 rad to the hopper's joints (leg stiffened).
             stiffness_joints=("leg_joint", "foot_joint"),
             spring_ref=2.0,
+            v4_obs_dim=11,
         ),
         _task(
             "walker2d",
@@ -102,6 +115,7 @@ TASKS: dict[str, TaskSpec] = {
             # RNAC's Walker2d env sets no springref: the spring pulls towards the standing pose.
             stiffness_joints=("foot_joint", "foot_left_joint"),
             spring_ref=0.0,
+            v4_obs_dim=17,
         ),
         _task(
             "ant",
@@ -111,6 +125,7 @@ TASKS: dict[str, TaskSpec] = {
             {"gravity": 9.81, "wind": 0.0},
             paper={"gravity": Sinusoid(14.715, 4.905, 0.5), "wind": Sinusoid(1.0, 0.2, 0.5)},
             medium=AIR,
+            v4_obs_dim=27,  # Ant-v4 leaves contact forces out of the observation by default
         ),
         _task(
             "humanoid",
@@ -120,6 +135,7 @@ TASKS: dict[str, TaskSpec] = {
             {"gravity": 9.81, "wind": 0.0},
             paper={"gravity": Sinusoid(14.715, 4.905, 0.5), "wind": Sinusoid(1.0, 0.5, 0.5)},
             medium=AIR,
+            v4_obs_dim=376,  # includes the world body's cinert/cvel/cfrc_ext and the root's forces
         ),
     )
 }
@@ -130,9 +146,35 @@ def list_tasks() -> list[str]:
     return list(TASKS)
 
 
-def get_task(name: str) -> TaskSpec:
-    """The `TaskSpec` of `name`; a one-line `UsageError` lists the tasks if it is unknown."""
+def get_task(name: str, version: str = "v5") -> TaskSpec:
+    """The `TaskSpec` of `name` on Gymnasium's `version` models (its `gym_id` and `obs_dim`); a
+    one-line `UsageError` lists the tasks or versions if either is unknown."""
     key = name.strip().lower() if isinstance(name, str) else name
     if key not in TASKS:
         check_choice("task", name, TASKS)
-    return TASKS[key]
+    check_choice("model version", version, VERSIONS)
+    spec = TASKS[key]
+    if version == spec.version:
+        return spec
+    return replace(
+        spec, gym_id=spec.gym_id.replace("-v5", "-v4"), obs_dim=spec.v4_obs_dim, version="v4"
+    )
+
+
+def env_options(config) -> dict[str, str]:
+    """`make`'s `physics` and `version` keywords from a run's config (a config dataclass or the
+    dict of its config.yaml); a config without them (runs made before these switches) gets the
+    defaults, `consistent` and `v5`."""
+    if not isinstance(config, dict):
+        config = vars(config)
+
+    def find(key: str, default: str) -> str:  # flat or sectioned config.yaml, breadth first
+        queue = [config]
+        while queue:
+            node = queue.pop(0)
+            if key in node:
+                return str(node[key])
+            queue.extend(v for v in node.values() if isinstance(v, dict))
+        return default
+
+    return {"physics": find("physics", PHYSICS[0]), "version": find("model_version", VERSIONS[0])}

@@ -93,16 +93,51 @@ def final_scores(run: Run) -> tuple[pd.DataFrame, str]:
             scores = ev.table.groupby("seed")["return"].mean()
             note = f"`adarl evaluate` ({meta.get('episodes')} episodes, step {last})"
             return _scores(scores), note
-    log = read_table(run.path / "eval.csv")
-    if log.empty or "dynamics" not in log:
-        return _scores(pd.Series(dtype=float)), "none"
-    log = log[log["dynamics"] == NOMINAL]
+    log = _nominal_evaluations(run)
     if log.empty:
         return _scores(pd.Series(dtype=float)), "none"
     at_last = log[log["step"] == log.groupby("seed")["step"].transform("max")]
     scores = at_last.groupby("seed")["return"].mean()
     steps = sorted(int(s) for s in at_last["step"].unique())
     return _scores(scores), f"eval.csv at step {', '.join(map(str, steps))}"
+
+
+def best_scores(run: Run) -> tuple[pd.DataFrame, str]:
+    """Each seed's return at its best checkpoint by mean nominal evaluation return (RNAC keeps
+    it, docs/rnac.md): columns `seed, score`, and a note saying where it came from.
+
+    From the `best` record of the final checkpoint's meta.json; a run without one (written
+    before it existed) falls back to the best mean `nominal` evaluation per seed in eval.csv.
+    """
+    found = checkpoint_dirs(run.path)
+    record = {}
+    if found:
+        try:
+            meta = json.loads((found[-1] / "meta.json").read_text(encoding="utf-8"))
+            record = (meta.get("best") or {}).get("seeds") or {}
+        except (OSError, ValueError):
+            record = {}
+    if record:
+        seeds = sorted(record, key=int)
+        returns = [float(record[s]["return"]) for s in seeds]
+        scores = pd.Series(returns, index=[int(s) for s in seeds])
+        steps = ", ".join(f"seed {s}: {record[s]['step']}" for s in seeds)
+        return _scores(scores), f"best checkpoint by evaluation (steps {steps})"
+    log = _nominal_evaluations(run)
+    if log.empty:
+        return _scores(pd.Series(dtype=float)), "none"
+    means = log.groupby(["seed", "step"], as_index=False)["return"].mean()
+    best = means.loc[means.groupby("seed")["return"].idxmax()]
+    scores = pd.Series(best["return"].to_numpy(float), index=best["seed"].to_numpy(int))
+    return _scores(scores), "best nominal evaluation in eval.csv (no best-checkpoint record)"
+
+
+def _nominal_evaluations(run: Run) -> pd.DataFrame:
+    """The rows of the run's eval.csv on nominal dynamics (empty if there are none)."""
+    log = read_table(run.path / "eval.csv")
+    if log.empty or "dynamics" not in log:
+        return log.iloc[0:0]
+    return log[log["dynamics"] == NOMINAL]
 
 
 def _scores(series: pd.Series) -> pd.DataFrame:
@@ -162,6 +197,34 @@ def final_ranks(run: Run) -> pd.DataFrame:
         return pd.DataFrame(columns=["seed", "layer", "rank"])
     history = history.sort_values("step")
     return history.groupby(["seed", "layer"], as_index=False)["rank"].last()
+
+
+def rank_settling(run: Run) -> pd.DataFrame:
+    """Per bottleneck and seed, from truncations.csv: `seed, layer, final_rank, truncations,
+    cuts` (truncations that lowered the rank), `retained` (cuts refused by the retain clause),
+    `last_change` (step of the last truncation that lowered the rank; NaN if none) and `settled`
+    (the rank did not change at the last truncation: it stopped before the run did)."""
+    columns = ["seed", "layer", "final_rank", "truncations", "cuts", "retained", "last_change"]
+    log = read_table(run.path / "truncations.csv")
+    if log.empty:
+        return pd.DataFrame(columns=[*columns, "settled"])
+    rows = []
+    for (seed, layer), g in log.sort_values("step").groupby(["seed", "layer"]):
+        changed = g[g["new_rank"] < g["old_rank"]]
+        decisions = g["decision"] if "decision" in g else pd.Series(dtype=str)
+        rows.append(
+            {
+                "seed": int(seed),
+                "layer": layer,
+                "final_rank": int(g["new_rank"].iloc[-1]),
+                "truncations": len(g),
+                "cuts": len(changed),
+                "retained": int((decisions == "retained").sum()),
+                "last_change": int(changed["step"].max()) if len(changed) else np.nan,
+                "settled": bool(g["new_rank"].iloc[-1] == g["old_rank"].iloc[-1]),
+            }
+        )
+    return pd.DataFrame(rows)
 
 
 # ----------------------------------------------------------------------------- spectra

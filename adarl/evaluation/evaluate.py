@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from adarl.envs.tasks import env_options
 from adarl.errors import UsageError
 from adarl.evaluation import grid
 from adarl.evaluation.runs import Run, checkpoint_step, policy_files, select_checkpoint
@@ -85,6 +86,7 @@ class Unit:
     eval_seed: int
     max_steps: int | None = None
     label: str = field(default="")
+    env: tuple[tuple[str, str], ...] = ()  # the run's physics and model version (`make` keywords)
 
 
 # ----------------------------------------------------------------------------- planning
@@ -139,6 +141,7 @@ def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
                         eval_seed=spec.eval_seed,
                         max_steps=spec.max_steps,
                         label=grid.point_label(spec.dynamics, point),
+                        env=tuple(env_options(run.config).items()),
                     )
                 )
     return units
@@ -159,6 +162,7 @@ def run_unit(unit: Unit) -> list[dict]:
         unit.eval_seed,
         max_steps=unit.max_steps,
         **dict(unit.point),
+        **dict(unit.env),
     )
     head = {"step": unit.step, "seed": unit.seed, "dynamics": unit.label}
     return [{**head, **row} for row in rows]

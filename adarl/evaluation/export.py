@@ -13,7 +13,7 @@ from pathlib import Path
 from adarl.errors import UsageError
 from adarl.evaluation.runs import Run, checkpoint_step, policy_file
 from adarl.policy import NumpyPolicy, load
-from adarl.train.io import atomic_write_bytes
+from adarl.train.io import atomic_write_bytes, check_writable_file
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,7 @@ def export_policy(
     out = Path(out)
     if out.is_dir():
         raise UsageError(f"--out {out} is a folder; give a file name such as policy.npz")
+    check_writable_file(out)
     source = policy_file(run, seed, checkpoint)
     try:
         policy = load(source)

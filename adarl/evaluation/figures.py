@@ -372,3 +372,53 @@ def probability_of_improvement(estimates: pd.DataFrame, reference: str = "adarl"
     ax.set_xlabel("probability of improvement")
     ax.set_title(f"probability of improvement of {reference}")
     return fig
+
+
+@styled
+def learning_rate_schedules(
+    total_updates: int = 3_000_000,
+    truncate_every: int = 1_000_000,
+    warmup_steps: int = 2_000,
+    base_lr: float = 3e-3,
+    min_ratio: float = 0.1,
+    points: int = 3_001,
+) -> Figure:
+    """AdaRL's learning rate over a run under `--lr-schedule envelope` and `restart`
+    (`adarl.nets.rank`): truncations every `truncate_every` updates, warm-ups drawn to scale."""
+    from adarl.nets import rank
+
+    t = np.unique(
+        np.concatenate(
+            [
+                np.linspace(0, total_updates - 1, points),
+                *[
+                    np.linspace(k, k + 2 * warmup_steps, 50)
+                    for k in range(truncate_every, total_updates, truncate_every)
+                ],
+            ]
+        )
+    )
+    start = (t // truncate_every) * truncate_every
+    cuts = t // truncate_every
+    envelope = np.asarray(
+        rank.envelope_learning_rate(
+            t, start, base_lr, warmup_steps, total_updates, min_ratio, cuts > 0
+        )
+    )
+    restart = np.where(
+        cuts > 0,
+        np.asarray(
+            rank.restart_learning_rate(t - start, base_lr, warmup_steps, truncate_every, min_ratio)
+        ),
+        base_lr,
+    )
+    fig = Figure(figsize=(COLUMN_WIDTH, PANEL_HEIGHT), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(t, envelope, label="envelope (default)")
+    ax.plot(t, restart, label="restart", linestyle="--")
+    for k in range(truncate_every, total_updates, truncate_every):
+        ax.axvline(k, **TRUNCATION_STYLE)
+    ax.set_xlabel("gradient step")
+    ax.set_ylabel("learning rate")
+    ax.legend(loc="lower left")
+    return fig

@@ -183,6 +183,7 @@ def play(
                 results = render_rollouts(
                     policy, env, episodes, seed, append, width, height, stride, max_steps
                 )
+            os.chmod(tmp, 0o644)  # mkstemp makes 0600; a video is an ordinary readable file
             os.replace(tmp, video)
         except BaseException:
             if os.path.exists(tmp):

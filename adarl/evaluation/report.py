@@ -13,9 +13,11 @@ Layout of the report folder::
     tables/per_task.{md,csv}     the same per task, in raw returns
     tables/probability_of_improvement.{md,csv}
     tables/performance_profiles.csv
+    tables/parseval.{md,csv}     every Parseval coefficient's cell (Table 1 keeps the best)
     tables/fixed_rank.{md,csv}   final return per fixed rank (bias–variance sweep)
     tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
     tables/runs.csv
+    tables/environments.csv      versions, CPU and XLA flags each run was made with
     figures/*.{png,pdf}
 """
 
@@ -24,17 +26,18 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import sys
 import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from adarl import __version__
-from adarl.errors import UsageError
-from adarl.evaluation import collect, compare, figures, tables
+from adarl.errors import UsageError, check_choice
+from adarl.evaluation import collect, compare, figures, selection, tables
 from adarl.evaluation.runs import (
     Run,
     config_value,
@@ -43,6 +46,7 @@ from adarl.evaluation.runs import (
     sort_methods,
     sort_tasks,
 )
+from adarl.train import provenance
 from adarl.train.io import checkpoint_dirs
 
 REFERENCE = "adarl"
@@ -58,6 +62,7 @@ class ReportOptions:
     seed: int = 0
     skip_incomplete: bool = False
     command: str = ""
+    rnac_checkpoint: str = "final"  # final, or best (by evaluation, as RNAC's original reports)
 
 
 @dataclass
@@ -76,6 +81,7 @@ def build_report(
     check_output(out)
     if options.bootstrap_reps < 1:
         raise UsageError(f"--bootstrap-reps must be ≥ 1, got {options.bootstrap_reps}")
+    check_choice("--rnac-checkpoint", options.rnac_checkpoint, selection.RNAC_CHECKPOINTS)
     runs, notes = usable_runs(find_runs(paths), options.skip_incomplete)
     check_rows(runs)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -147,22 +153,39 @@ def _swap_into_place(tmp: Path, out: Path) -> None:
 def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: list[str]) -> None:
     (folder / "tables").mkdir(parents=True)
     (folder / "figures").mkdir()
+    best_rnac = options.rnac_checkpoint == "best"
+    if best_rnac:
+        runs = [
+            replace(r, label=f"{r.label} ({selection.RNAC_BEST_LABEL})")
+            if r.algo == selection.RNAC
+            else r
+            for r in runs
+        ]
     tasks, methods = sort_tasks(r.task for r in runs), sort_methods(r.label for r in runs)
     runs = sorted(runs, key=lambda r: (tasks.index(r.task), methods.index(r.label), str(r.path)))
     fixed = [r for r in runs if r.algo == FIXED_RANK]
     main = [r for r in runs if r.algo != FIXED_RANK] or fixed
-    finals = {r.path: collect.final_scores(r) for r in runs}
+    finals = {
+        r.path: collect.best_scores(r)
+        if best_rnac and r.algo == selection.RNAC
+        else collect.final_scores(r)
+        for r in runs
+    }
     for r in runs:
         if finals[r.path][0].empty:
             notes.append(
                 f"{r.path} has no nominal evaluation (neither `adarl evaluate --dynamics nominal` "
                 "of its final checkpoint nor `nominal` rows in eval.csv); it is left out of the tables."
             )
-    scores = _long_scores(main, finals)
-    colours = figures.method_colours([r.label for r in runs])
+    parseval = selection.select_parseval(main, _long_scores(main, finals))
+    scores = parseval.scores
+    notes += parseval.notes
+    colours = figures.method_colours([r.label for r in runs] + list(parseval.labels.values()))
 
     sections = [runs_section(runs, finals, folder)]
-    sections.append(table1_section(scores, folder))
+    sections.append(table1_section(scores, folder, protocol_notes(runs, parseval, options)))
+    if not parseval.cells.empty:
+        sections.append(parseval_section(parseval, folder))
     sections += statistics_sections(scores, folder, options, notes)
     sections.append(training_section(main, folder, colours))
     sections.append(rank_section(runs, folder))
@@ -171,6 +194,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     sections.append(ablation_section(runs, folder))
     sections.append(spectra_section(runs, folder))
     sections.append(policy_size_section(runs, folder))
+    sections.append(environment_section(runs, folder, notes))
     write_index(folder, runs, sections, options, notes)
 
 
@@ -236,23 +260,70 @@ def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
     return Section("Runs", text, [path])
 
 
-def table1_section(scores: pd.DataFrame, folder: Path) -> Section:
+def table1_section(scores: pd.DataFrame, folder: Path, labels: Sequence[str] = ()) -> Section:
+    """Table 1; `labels` explain method labels (Parseval's selection, RNAC's checkpoint) below
+    the table, in the LaTeX caption and in the report text."""
     if scores.empty:
         return Section(
             "Table 1: final return under nominal dynamics", "No nominal evaluations found.\n"
         )
     table = tables.score_table(scores)
     caption = "Final return under nominal dynamics, mean ± standard deviation over seeds."
+    legend = "".join(f"\n{line}\n" for line in labels)
+    full_caption = " ".join([caption, *labels]).replace("`", "")
     files = [
-        _write(folder, "tables/table1.md", tables.table_markdown(table)),
-        _write(folder, "tables/table1.tex", tables.table_latex(table, caption=caption)),
+        _write(folder, "tables/table1.md", tables.table_markdown(table) + legend),
+        _write(folder, "tables/table1.tex", tables.table_latex(table, caption=full_caption)),
         _write(folder, "tables/table1.csv", tables.table_csv(table)),
     ]
     text = (
         f"{caption} The best mean per task is in bold. Seeds per cell: "
-        f"{_seed_counts(table)}.\n\n{tables.table_markdown(table)}"
+        f"{_seed_counts(table)}.\n\n{tables.table_markdown(table)}{legend}"
     )
     return Section("Table 1: final return under nominal dynamics", text, files)
+
+
+def protocol_notes(
+    runs: Sequence[Run], parseval: selection.ParsevalSelection, options: ReportOptions
+) -> list[str]:
+    """One line per method label that carries a protocol choice: Parseval's selected
+    coefficient, RNAC's final or best checkpoint."""
+    lines = []
+    for label in sorted(set(parseval.labels.values())):
+        tasks = [t for t, lab in parseval.labels.items() if lab == label]
+        chosen = parseval.cells[parseval.cells["selected"] & parseval.cells["task"].isin(tasks)]
+        picks = ", ".join(
+            f"{t} {selection.coef_text(c)}" for t, c in zip(chosen["task"], chosen[selection.COEF])
+        )
+        n = int(re.search(r"best of (\d+)", label).group(1))
+        lines.append(
+            f"{label}: {selection.PARSEVAL_NOTE.format(n=n)}; chosen coefficient: {picks}; "
+            "every coefficient: tables/parseval.md."
+        )
+    rnac = ", ".join(sort_methods(r.label for r in runs if r.algo == selection.RNAC))
+    if rnac and options.rnac_checkpoint == "best":
+        lines.append(f"{rnac}: {selection.RNAC_BEST_NOTE}.")
+    elif rnac:
+        lines.append(
+            f"{rnac}: the final checkpoint (`--rnac-checkpoint best` shows RNAC's best "
+            "checkpoint by evaluation, as its original reports)."
+        )
+    return lines
+
+
+def parseval_section(parseval: selection.ParsevalSelection, folder: Path) -> Section:
+    md = selection.parseval_markdown(parseval.cells)
+    files = [
+        _write(folder, "tables/parseval.md", md),
+        _write(folder, "tables/parseval.csv", _csv(parseval.cells)),
+    ]
+    text = (
+        "Final return under nominal dynamics of `sac-parseval` at each coefficient, mean ± "
+        "standard deviation over seeds. As in the paper, Table 1 and the statistics report, per "
+        "task, the coefficient with the highest mean (in bold; ties: the larger coefficient), "
+        "chosen on the same metric it reports, so that cell is optimistic.\n\n" + md
+    )
+    return Section("Supplementary: Parseval coefficients", text, files)
 
 
 def _seed_counts(table: tables.ScoreTable) -> str:
@@ -435,12 +506,74 @@ def rank_section(runs: list[Run], folder: Path) -> Section:
         )
     if not files:
         return Section("Rank over training", "No rank-adaptive runs.\n")
+    table, md = settling_table(runs)
+    files.append(_write(folder, "tables/rank_settling.md", md))
+    files.append(_write(folder, "tables/rank_settling.csv", _csv(table)))
     text = (
         "Estimated rank of each bottleneck, per seed; dotted line: 2·d_a+1.\n\n"
         + "\n".join(lines)
-        + "\n"
+        + "\n\nWhere the ranks stopped (per bottleneck, over seeds): the final rank (mean and "
+        "range), the truncations that cut it and the cuts the retain clause refused (totals "
+        "over seeds), the median step of its last cut, and how many seeds kept their rank at "
+        "the last truncation (settled).\n\n" + md
     )
     return Section("Rank over training", text, files)
+
+
+def settling_table(runs: list[Run]) -> tuple[pd.DataFrame, str]:
+    """One row per run and bottleneck summarising `collect.rank_settling` over seeds."""
+    rows = []
+    for r in runs:
+        settling = collect.rank_settling(r)
+        for layer, g in settling.groupby("layer", sort=True):
+            rows.append(
+                {
+                    "task": r.task,
+                    "method": r.label,
+                    "layer": layer,
+                    "intrinsic_rank": intrinsic_rank(r),
+                    "final_rank_mean": float(g["final_rank"].mean()),
+                    "final_rank_min": int(g["final_rank"].min()),
+                    "final_rank_max": int(g["final_rank"].max()),
+                    "truncations": int(g["truncations"].max()),
+                    "cuts": int(g["cuts"].sum()),
+                    "retained": int(g["retained"].sum()),
+                    "median_last_cut": float(g["last_change"].median()),
+                    "settled_seeds": int(g["settled"].sum()),
+                    "seeds": len(g),
+                }
+            )
+    table = pd.DataFrame(rows)
+    md = tables.markdown_table(
+        [
+            "task",
+            "method",
+            "layer",
+            "2·d_a+1",
+            "final rank",
+            "truncations",
+            "cuts",
+            "retained",
+            "last cut (median step)",
+            "settled",
+        ],
+        [
+            [
+                row.task,
+                row.method,
+                row.layer,
+                str(row.intrinsic_rank),
+                f"{row.final_rank_mean:.1f} ({row.final_rank_min}–{row.final_rank_max})",
+                str(row.truncations),
+                str(row.cuts),
+                str(row.retained),
+                "—" if np.isnan(row.median_last_cut) else f"{row.median_last_cut:,.0f}",
+                f"{row.settled_seeds}/{row.seeds}",
+            ]
+            for row in table.itertuples()
+        ],
+    )
+    return table, md
 
 
 def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str]) -> Section:
@@ -563,9 +696,8 @@ def ablation_section(runs: list[Run], folder: Path) -> Section:
         steps: set[int] = set()
         for r in (r for r in adarl if r.task == task):
             history = collect.rank_history(r)
-            if not history.empty:
-                rule = str(config_value(r.config, "rank_rule", "cumulative"))
-                histories.setdefault(f"{rule} rule", []).append(history)
+            if not history.empty:  # one line per variant (rule, retain tolerance)
+                histories.setdefault(r.label, []).append(history)
                 steps.update(collect.truncation_steps(r))
         if len(histories) < 2:
             continue
@@ -640,6 +772,20 @@ def policy_size_section(runs: list[Run], folder: Path) -> Section:
         "final checkpoint, over seeds.\n\n" + md
     )
     return Section("Policy size", text, files)
+
+
+def environment_section(runs: list[Run], folder: Path, notes: list[str]) -> Section:
+    """What produced each run (its environment.json; "unknown" without one), and one warning per
+    package of `provenance.COMPARED` whose version differs between runs, in the notes and on
+    stderr."""
+    records = {str(r.path): provenance.read_environment(r.path) for r in runs}
+    df = pd.DataFrame([{"run": run, **provenance.summary(rec)} for run, rec in records.items()])
+    path = _write(folder, "tables/environments.csv", df.to_csv(index=False))
+    for line in provenance.mismatches(records):
+        notes.append(f"Warning: {line}.")
+        print(f"adarl: warning: {line}", file=sys.stderr)
+    text = tables.markdown_table(list(df.columns), df.values.tolist())
+    return Section("Environments", text, [path])
 
 
 # ----------------------------------------------------------------------------- index.md

@@ -188,16 +188,24 @@ def find_runs(paths: Iterable[str | os.PathLike]) -> list[Run]:
 
 
 # ----------------------------------------------------------------------------- method labels
+#: AdaRL's default rank rule: runs with it are labelled plain `adarl`.
+DEFAULT_RANK_RULE = "energy"
+
+
 def method_label(config: dict) -> str:
     """The name a run's method has in tables and legends: the algo, plus the setting that makes
-    a variant (the rank of `sac-fixed-rank`, a non-default rank rule of `adarl`)."""
+    a variant (the rank of `sac-fixed-rank`, a non-default rank rule or the retain clause's
+    tolerance of `adarl`)."""
     algo = str(config_value(config, "algo"))
     if algo == "sac-fixed-rank":
         rank = config_value(config, "rank")
         return f"sac-fixed-rank r={rank}" if rank is not None else algo
     if algo == "adarl":
-        rule = str(config_value(config, "rank_rule", "cumulative"))
-        return algo if rule == "cumulative" else f"adarl ({rule} rule)"
+        rule = str(config_value(config, "rank_rule", "cumulative"))  # older runs: Eq. 5
+        tolerance = config_value(config, "retain_tolerance")
+        parts = [] if rule == DEFAULT_RANK_RULE else [f"{rule} rule"]
+        parts += [] if tolerance is None else [f"retain {float(tolerance):g}"]
+        return f"adarl ({', '.join(parts)})" if parts else algo
     return algo
 
 

@@ -93,7 +93,7 @@ def write_run(
     dynamics: str = "paper",
     quality: float = 1.0,
     rank: int | None = None,
-    rank_rule: str = "cumulative",
+    rank_rule: str = "energy",
     n_evals: int = 5,
     n_truncations: int = 3,
     checkpoint: bool = True,

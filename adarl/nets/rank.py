@@ -11,9 +11,11 @@ update under `vmap`.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
-RANK_RULES = ("cumulative", "ratio")
+RANK_RULES = ("cumulative", "ratio", "energy", "energy-squared")
+LR_SCHEDULES = ("envelope", "restart")
 
 
 def select_rank_cumulative(sigma: jnp.ndarray, beta: float) -> jnp.ndarray:
@@ -36,12 +38,31 @@ def select_rank_ratio(sigma: jnp.ndarray, beta: float) -> jnp.ndarray:
     return jnp.where(jnp.any(hits), first + 1, sigma.shape[0]).astype(jnp.int32)
 
 
+def select_rank_energy(sigma: jnp.ndarray, beta: float) -> jnp.ndarray:
+    """The energy ("srank") rule: r̂ = min{ℓ : Σ_{i≤ℓ} σ_i / Σ_i σ_i ≥ β} (Kumar et al., 2021).
+
+    Unlike Eq. 5 it has a fixed point: a rank-r spectrum (σ_{r+1} = … = 0) is kept at r exactly
+    when Σ_{i<r} σ_i / Σσ < β, i.e. when its smallest non-zero value holds more than 1 − β of
+    the mass. Eq. 5 keeps the longest prefix holding at most β, this the shortest holding at least
+    β, so the two differ by at most one component. An all-zero spectrum gives d.
+    """
+    total = jnp.sum(sigma)
+    cumulative = jnp.cumsum(sigma) / jnp.where(total > 0, total, 1.0)
+    below = jnp.sum(cumulative < beta)  # non-decreasing: the count is the first ℓ reaching β, − 1
+    return jnp.minimum(below + 1, sigma.shape[0]).astype(jnp.int32)
+
+
 def select_rank(sigma: jnp.ndarray, beta: float, rule: str = "cumulative") -> jnp.ndarray:
-    """r̂ from a descending spectrum by the named rule (`cumulative` or `ratio`)."""
+    """r̂ from a descending spectrum by the named rule: `cumulative` (Eq. 5), `ratio` (Eq. 7),
+    `energy` (on σ_i) or `energy-squared` (on σ_i², the form of Trained Rank Pruning)."""
     if rule == "cumulative":
         return select_rank_cumulative(sigma, beta)
     if rule == "ratio":
         return select_rank_ratio(sigma, beta)
+    if rule == "energy":
+        return select_rank_energy(sigma, beta)
+    if rule == "energy-squared":
+        return select_rank_energy(sigma**2, beta)
     raise ValueError(f"unknown rank rule {rule!r}; allowed: {', '.join(RANK_RULES)}")
 
 
@@ -60,6 +81,48 @@ def bottleneck_product(w1: jnp.ndarray, w2: jnp.ndarray, mask: jnp.ndarray) -> j
     return (w1 * mask[None, :]) @ w2
 
 
+@jax.custom_batching.custom_vmap
+def svd(matrix: jnp.ndarray):
+    """`jnp.linalg.svd(matrix, full_matrices=False)`, batched under `vmap` as a sequential
+    `lax.map` of single-matrix LAPACK calls. jaxlib's batched CPU SVD splits its batch over the
+    device's thread pool and waits on it from inside that pool; with one CPU device per core
+    (`adarl.runtime`) two such SVDs running at once can deadlock (reproduced with jaxlib 0.10).
+    The bottlenecks are small and truncations rare, so the sequential form costs nothing."""
+    u, s, vt = jnp.linalg.svd(matrix, full_matrices=False)
+    return u, s, vt
+
+
+@svd.def_vmap
+def _svd_vmap(axis_size, in_batched, matrix):
+    del axis_size, in_batched
+    return jax.lax.map(svd, matrix), (True, True, True)
+
+
+def spectrum(w1, w2, mask):
+    """SVD W1·diag(mask)·W2 = U Σ Vᵀ, cut (or zero-padded) to the bottleneck's width d: a
+    bottleneck of width d has rank ≤ d, so only its first d singular values can be non-zero.
+    Returns `(u, s, vt)` with `s` descending."""
+    width = mask.shape[0]
+    u, s, vt = svd(bottleneck_product(w1, w2, mask))
+    k = s.shape[0]
+    if k >= width:
+        return u[:, :width], s[:width], vt[:width, :]
+    # width exceeds min(in, out): pad with zero components
+    return (
+        jnp.pad(u, ((0, 0), (0, width - k))),
+        jnp.pad(s, (0, width - k)),
+        jnp.pad(vt, ((0, width - k), (0, 0))),
+    )
+
+
+def reparameterise(u, s, vt, new_rank, dtype=jnp.float32):
+    """W1 = U_r √Σ_r, W2 = √Σ_r V_rᵀ (the best rank-r approximation, Eckart–Young), components
+    past r exactly zero. Returns `(w1, w2, mask)`."""
+    mask = rank_mask(new_rank, s.shape[0], dtype)
+    root = jnp.sqrt(s) * mask
+    return u * root[None, :], root[:, None] * vt, mask
+
+
 def truncate_bottleneck(w1, w2, mask, beta: float, rule: str = "cumulative"):
     """One rank-adaptation step on a padded bottleneck (paper appendix, "Basic Settings").
 
@@ -67,28 +130,31 @@ def truncate_bottleneck(w1, w2, mask, beta: float, rule: str = "cumulative"):
     W1 = U[:, :r] √Σ_r, W2 = √Σ_r V[:r, :]ᵀ, so W1·W2 becomes the best rank-r approximation of
     the old product (Eckart–Young). Components past r are set to exactly zero.
 
-    Returns `(w1_new, w2_new, mask_new, sigma, proposed_rank)`; `sigma` is the full spectrum
-    (length min(in, out) ≥ width is not required; it is padded/cut to the bottleneck width).
+    Returns `(w1_new, w2_new, mask_new, sigma, proposed_rank)`; `sigma` is the spectrum cut or
+    padded to the bottleneck width.
     """
-    width = mask.shape[0]
-    product = bottleneck_product(w1, w2, mask)
-    u, s, vt = jnp.linalg.svd(product, full_matrices=False)
-    k = s.shape[0]
-    # a bottleneck of width d has rank ≤ d, so only its first d singular values can be non-zero
-    if k >= width:
-        u, s, vt = u[:, :width], s[:width], vt[:width, :]
-    else:  # width exceeds min(in, out): pad with zero components
-        u = jnp.pad(u, ((0, 0), (0, width - k)))
-        s = jnp.pad(s, (0, width - k))
-        vt = jnp.pad(vt, ((0, width - k), (0, 0)))
+    u, s, vt = spectrum(w1, w2, mask)
     old_rank = jnp.sum(mask).astype(jnp.int32)
     proposed = select_rank(s, beta, rule)
-    new_rank = next_rank(old_rank, proposed)
-    new_mask = rank_mask(new_rank, width, w1.dtype)
-    root = jnp.sqrt(s) * new_mask
-    w1_new = u * root[None, :]
-    w2_new = root[:, None] * vt
+    w1_new, w2_new, new_mask = reparameterise(u, s, vt, next_rank(old_rank, proposed), w1.dtype)
     return w1_new, w2_new, new_mask, s, proposed
+
+
+def relative_error(approx: jnp.ndarray, reference: jnp.ndarray) -> jnp.ndarray:
+    """‖approx − reference‖ / ‖reference‖ over all entries (0 when both are zero)."""
+    num = jnp.linalg.norm((approx - reference).ravel())
+    den = jnp.linalg.norm(reference.ravel())
+    return jnp.where(den > 0, num / jnp.where(den > 0, den, 1.0), jnp.where(num > 0, jnp.inf, 0.0))
+
+
+def retain_or_cut(old_rank, candidate, error, tolerance: float | None):
+    """The paper's retain clause: "if no lower-rank model with sufficient approximation quality
+    can be found, we simply retain the previous rank". The candidate rank is accepted when the
+    truncated network's relative output error is at most `tolerance` (a NaN error fails);
+    `tolerance=None` turns the test off (always accept)."""
+    if tolerance is None:
+        return candidate
+    return jnp.where(error <= tolerance, candidate, old_rank).astype(jnp.int32)
 
 
 def restart_learning_rate(
@@ -111,3 +177,31 @@ def restart_learning_rate(
     progress = jnp.clip((t - warmup_steps) / decay_len, 0.0, 1.0)
     cosine = min_ratio + (1.0 - min_ratio) * 0.5 * (1.0 + jnp.cos(jnp.pi * progress))
     return base_lr * jnp.where(t < warmup_steps, warm, cosine)
+
+
+def envelope_learning_rate(
+    update,
+    iteration_start,
+    base_lr: float,
+    warmup_steps: int,
+    total_updates: int,
+    min_ratio: float,
+    warm_up,
+):
+    """ReLoRA's schedule (its `get_cosine_schedule_with_multiple_warmups`): one cosine envelope
+    over the whole run, and after each optimiser reset a linear warm-up that rises to the
+    envelope's value at the end of the warm-up:
+        env(t) = base · (m + (1 − m) · ½ (1 + cos(π · min(1, t / T))))
+        τ = t − t_reset < w (and `warm_up`):  lr = env(t_reset + w) · τ / w;  otherwise lr = env(t)
+    `t` counts gradient steps from the start of the run and T is the run's total."""
+    t = jnp.asarray(update, jnp.float32)
+    start = jnp.asarray(iteration_start, jnp.float32)
+
+    def envelope(x):
+        progress = jnp.clip(x / max(total_updates, 1), 0.0, 1.0)
+        return base_lr * (min_ratio + (1.0 - min_ratio) * 0.5 * (1.0 + jnp.cos(jnp.pi * progress)))
+
+    tau = t - start
+    warming = jnp.logical_and(warm_up, tau < warmup_steps)
+    ramp = envelope(start + warmup_steps) * tau / max(warmup_steps, 1)
+    return jnp.where(warming, ramp, envelope(t))

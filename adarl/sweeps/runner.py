@@ -36,7 +36,11 @@ from adarl.sweeps.spec import Sweep, Unit
 from adarl.sweeps.worker import EXIT_BUSY
 
 POLL_S = 1.0  # how often the loop looks for finished and started units
-NOT_RETRIED = {2: "bad input", EXIT_BUSY: "another process is training this unit"}
+NOT_RETRIED = {
+    2: "bad input",
+    3: "training diverged",  # deterministic: a retry diverges again
+    EXIT_BUSY: "another process is training this unit",
+}
 
 
 @dataclass

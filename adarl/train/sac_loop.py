@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import sys
 import time
 from io import BytesIO
@@ -38,6 +39,10 @@ from adarl.errors import UsageError
 from adarl.train import buffer as replay
 from adarl.train import io
 
+LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
+# proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
+# relative output error on the replay sample; decision: accepted, retained or unchanged
+TRUNCATION_COLUMNS = [*LEGACY_TRUNCATION_COLUMNS, "candidate_rank", "error", "decision"]
 BASE_COLUMNS = [
     "step",
     "seed",
@@ -136,6 +141,8 @@ class Run:
                 dynamics=config.dynamics,
                 seed=s,
                 max_episode_steps=config.max_episode_steps,
+                physics=config.physics,
+                version=config.model_version,
             )
             for s in self.seeds
         ]
@@ -146,6 +153,21 @@ class Run:
         self.fns = compile_functions(self.spec)
         self.layer_names = sac.bottleneck_names(config)
         self.lane_seeds = split_lanes(self.n, config.lanes)
+        row_bytes = 4 * (self.spec.obs_dim + self.spec.act_dim + 1) + 2  # replay.init_buffer
+        io.check_memory(
+            self.n * config.buffer_size * row_bytes,
+            f"the replay buffers ({self.n} seeds x buffer-size {config.buffer_size})",
+        )
+        for label in config.eval_dynamics:  # checked now, not at the first evaluation
+            make(
+                config.task,
+                dynamics=label,
+                seed=0,
+                max_episode_steps=1,
+                physics=config.physics,
+                version=config.model_version,
+            ).close()
+        self.watch = io.DivergenceWatch(run_dir, config.on_divergence)
 
     # ------------------------------------------------------------------ state
     def fresh(self) -> None:
@@ -269,10 +291,14 @@ class Run:
             ),
         }
         if self.config.adapt_rank:
-            self.logs["truncations.csv"] = io.CsvLog(
-                d / "truncations.csv",
-                ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"],
-            )
+            path = d / "truncations.csv"
+            columns = TRUNCATION_COLUMNS
+            if offsets and path.exists() and path.stat().st_size:
+                with open(path, encoding="utf-8") as f:
+                    header = f.readline().strip().split(",")
+                if sorted(header) == sorted(LEGACY_TRUNCATION_COLUMNS):  # a run from before
+                    columns = LEGACY_TRUNCATION_COLUMNS  # the retain clause: same columns
+            self.logs["truncations.csv"] = io.CsvLog(path, columns)
         self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets else None)
         self.recent_returns, self.last_eval = [], {}
 
@@ -336,6 +362,8 @@ class Run:
                 self.logs["episodes.csv"].write(row)
                 self.tb.write(t, {f"episode/return/seed{self.seeds[i]}": self.ep_return[i]})
                 self.recent_returns.append(float(self.ep_return[i]))
+                if not math.isfinite(self.ep_return[i]):
+                    self.watch.note("episode return", [self.seeds[i]])
                 self.ep_return[i], self.ep_length[i] = 0.0, 0
                 next_obs, _ = env.reset()
             self.obs[i] = next_obs
@@ -380,14 +408,14 @@ class Run:
             reports.append(jax.device_get(report))
         report = _concat_lanes(reports)
         self.iteration_start = self.n_updates
-        spectra = {name: np.asarray(s) for name, (s, _, _) in report.items()}
+        spectra = {name: np.asarray(item[0]) for name, item in report.items()}
         buf = BytesIO()
         np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
         io.atomic_write_bytes(
             self.run_dir / "spectra" / f"step_{self.step:012d}.npz", buf.getvalue()
         )
         rows = []
-        for name, (_, proposed, new) in report.items():
+        for name, (_, proposed, new, candidate, error) in report.items():
             for i, seed in enumerate(self.seeds):
                 rows.append(
                     {
@@ -397,9 +425,15 @@ class Run:
                         "old_rank": int(old[name][i]),
                         "proposed_rank": int(proposed[i]),
                         "new_rank": int(new[i]),
+                        "candidate_rank": int(candidate[i]),
+                        "error": float(error[i]),
+                        "decision": truncation_decision(
+                            int(old[name][i]), int(candidate[i]), int(new[i])
+                        ),
                     }
                 )
-        self.logs["truncations.csv"].write(rows)
+        log = self.logs["truncations.csv"]
+        log.write([{k: row[k] for k in log.columns} for row in rows])
         if c.compact_bottlenecks:
             self.narrow_bottlenecks(self.gather(self.fns.ranks))
 
@@ -429,6 +463,8 @@ class Run:
             lane.infos = []
             per_lane.append({k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]})
         mean = _concat_lanes(per_lane)
+        for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
+            self.watch.note_values(key, self.seeds, mean[key])
         ranks = self.gather(self.fns.ranks)
         diag = self.gather(self.fns.diagnostics)
         rows = []
@@ -478,6 +514,8 @@ class Run:
                     c.eval_episodes,
                     seed=1_000_000 + self.seeds[i],
                     max_episode_steps=c.max_episode_steps,
+                    physics=c.physics,
+                    version=c.model_version,
                 )
                 self.logs["eval.csv"].write(
                     [
@@ -506,6 +544,7 @@ class Run:
             "env_states": [_to_json(env.get_state()) for env in self.envs],
             "csv_offsets": {name: log.offset() for name, log in self.logs.items()},
             "bottleneck_widths": sac.bottleneck_widths(self.spec),
+            "config": io.config_record(self.config),
         }
         policies = {
             f"policy_seed_{seed}.npz": to_bytes(arrays)
@@ -519,6 +558,13 @@ class Run:
             keep=self.config.keep_checkpoints,
             files=policies,
         )
+
+    def check_divergence(self) -> None:
+        """Stop the run (or warn once) on non-finite parameters, returns or logged losses."""
+        for name, ok in self.gather(_finite_parameters).items():
+            self.watch.note(f"{name} parameters", [s for s, o in zip(self.seeds, ok) if not o])
+        self.watch.note_values("episode return", self.seeds, self.ep_return)
+        self.watch.check(self.step)
 
     def block_until_ready(self) -> None:
         for lane in self.lanes:
@@ -537,10 +583,12 @@ class Run:
                 now = time.perf_counter()
                 rate = (t - s_log) / max(now - t_log, 1e-9)
                 self.write_train_log(rate)
+                self.check_divergence()
                 t_log, s_log = now, t
             if t % c.eval_every == 0 or t == c.total_steps:
                 self.evaluate()
             if t % c.checkpoint_every == 0 or t == c.total_steps:
+                self.check_divergence()  # never checkpoint non-finite parameters
                 self.save()
             if bar is not None:
                 recent = self.recent_returns[-10 * self.n :]
@@ -551,6 +599,31 @@ class Run:
         if bar is not None:
             bar.close()
         io.atomic_write_text(self.run_dir / "DONE", f"{self.step}\n")
+
+
+def truncation_decision(old_rank: int, candidate_rank: int, new_rank: int) -> str:
+    """`accepted`: the rule's cut was made; `retained`: the retain clause kept the old rank;
+    `unchanged`: the rule proposed no cut."""
+    if candidate_rank >= old_rank:
+        return "unchanged"
+    return "accepted" if new_rank == candidate_rank else "retained"
+
+
+@jax.jit
+def _finite_parameters(state: dict) -> dict:
+    """Per seed of a lane: are all actor, critic and temperature parameters finite?"""
+
+    def finite(tree):
+        leaves = jax.tree_util.tree_leaves(tree)
+        return jnp.stack([jnp.isfinite(x).reshape(x.shape[0], -1).all(axis=1) for x in leaves]).all(
+            axis=0
+        )
+
+    return {
+        "actor": finite(state["actor"]),
+        "critic": finite(state["critic"]),
+        "temperature": finite(state["log_alpha"]),
+    }
 
 
 def _concat_lanes(parts: list):
@@ -604,16 +677,26 @@ def train(
     progress: bool = True,
     command: str = "",
 ) -> Path:
-    """Train (or resume) a SAC-family run into `run_dir`; returns the run folder."""
+    """Train (or resume) a SAC-family run into `run_dir`; returns the run folder. The run
+    folder's lock is held from the first write to the end (docs/reliability.md)."""
     run_dir = Path(run_dir)
+    with io.RunLock(run_dir) as lock:
+        _train(config, run_dir, resume, progress, command, lock)
+    return run_dir
+
+
+def _train(config, run_dir: Path, resume: bool, progress: bool, command: str, lock) -> None:
     if resume:
+        io.check_resume_dir(run_dir)
+        lock.acquire(new=False)
         run = Run(config, run_dir, progress)
-        found = io.checkpoint_dirs(run_dir)
         if (run_dir / "DONE").exists():
             print(f"run {run_dir} is already complete", file=sys.stderr)
-            return run_dir
-        if found:
-            arrays, meta = io.load_checkpoint(found[-1])
+            return
+        loaded = io.load_latest_intact(run_dir)
+        if loaded:
+            _, arrays, meta = loaded
+            io.check_resume_config(run_dir, meta, config)
             run.restore(arrays, meta)
             run.open_logs(meta["csv_offsets"])
         else:  # killed before its first checkpoint: start again, keeping nothing half-done
@@ -622,13 +705,9 @@ def train(
                 {name: 0 for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")}
             )
     else:
-        if run_dir.exists() and any(run_dir.iterdir()):
-            raise UsageError(
-                f"run folder {run_dir} already exists and is not empty; "
-                f"resume it with --resume {run_dir} or choose another --out"
-            )
+        io.check_new_run_dir(run_dir)
         run = Run(config, run_dir, progress)
-        run_dir.mkdir(parents=True, exist_ok=True)
+        lock.acquire(new=True)
         io.atomic_write_text(
             run_dir / "config.yaml",
             config_to_yaml(
@@ -640,13 +719,19 @@ def train(
                 },
             ),
         )
+        io.write_environment(run_dir)
         run.fresh()
         run.open_logs(None)
+        if config.adapt_rank and sac.n_truncations(config) == 0:
+            print(
+                f"warning: total steps {config.total_steps} with truncate-every (d_t) "
+                f"{config.truncate_every} gives 0 truncations: the rank will not adapt",
+                file=sys.stderr,
+            )
     try:
         run.loop()
     finally:
         run.close_logs()
-    return run_dir
 
 
 def load_run_config(run_dir: str | Path) -> dict:

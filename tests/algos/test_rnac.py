@@ -213,6 +213,87 @@ def test_run_checkpoint_and_exact_resume(tmp_path):
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
 
 
+# ----------------------------------------------------------------------------- best checkpoint
+def _best(checkpoint):
+    import json
+
+    return json.loads((checkpoint / "meta.json").read_text())["best"]
+
+
+def _policy_arrays(path):
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def test_best_checkpoint_is_kept_and_resume_exact(tmp_path):
+    """Each seed's best policy by mean nominal evaluation return is kept beside the final one:
+    its record matches eval.csv, its file scores what was recorded, and a resumed run takes the
+    best from its checkpoint, so it ends with the same record and arrays."""
+    import json
+
+    from adarl.evaluation.rollout import run_episodes
+    from adarl.policy import load
+
+    config = _config(seeds=(0, 1))
+    full, last, first = (
+        tmp_path / "full",
+        "checkpoints/step_000000001024",
+        "checkpoints/step_000000000640",
+    )
+    rnac.train(config, full, progress=False)
+    record = _best(full / last)
+    assert record["metric"] == "mean nominal evaluation return"
+    assert _best(full / first)["seeds"].keys() == {"0", "1"}  # from the evaluation at 512
+    evals = [r for r in _rows(full, "eval") if r["dynamics"] == "nominal"]
+    for s in (0, 1):
+        mine = [r for r in evals if r["seed"] == str(s)]  # one episode per evaluation
+        top = max(mine, key=lambda r: float(r["return"]))  # the first maximum: ties keep it
+        best = record["seeds"][str(s)]
+        assert best["step"] == int(top["step"])
+        assert best["return"] == pytest.approx(float(top["return"]), rel=1e-5)
+        policy = load(full / last / f"best_policy_seed_{s}.npz")
+        assert (
+            run_episodes(policy, "hopper", "nominal", 1, 1_000_000 + s)[0]["return"]
+            == best["return"]
+        )
+        assert (full / last / f"policy_seed_{s}.npz").is_file()  # the final one stays
+
+    # killed after the first checkpoint and resumed: the same best record and arrays
+    cut = tmp_path / "cut"
+    shutil.copytree(full, cut)
+    shutil.rmtree(cut / last)
+    (cut / "DONE").unlink()
+    forged = tmp_path / "forged"
+    shutil.copytree(cut, forged)
+    rnac.train(config, cut, resume=True, progress=False)
+    assert _best(cut / last) == record
+    for s in (0, 1):
+        a = _policy_arrays(full / last / f"best_policy_seed_{s}.npz")
+        b = _policy_arrays(cut / last / f"best_policy_seed_{s}.npz")
+        assert a.keys() == b.keys()
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+    # the best comes from the checkpoint, not from a recount: an unbeatable record survives
+    meta = json.loads((forged / first / "meta.json").read_text())
+    meta["best"]["seeds"]["0"]["return"] = 1e9
+    (forged / first / "meta.json").write_text(json.dumps(meta))
+    rnac.train(config, forged, resume=True, progress=False)
+    assert _best(forged / last)["seeds"]["0"] == {"step": 512, "return": 1e9}
+    assert _best(forged / last)["seeds"]["1"] == record["seeds"]["1"]
+    kept = _policy_arrays(forged / last / "best_policy_seed_0.npz")
+    for key, value in _policy_arrays(forged / first / "best_policy_seed_0.npz").items():
+        np.testing.assert_array_equal(kept[key], value, err_msg=key)
+
+    # a checkpoint whose best policy file is missing: one line, no resume
+    (forged / "DONE").unlink()
+    shutil.rmtree(forged / last)
+    (forged / first / "best_policy_seed_1.npz").unlink()
+    with pytest.raises(UsageError, match="has no best_policy_seed_1.npz") as err:
+        rnac.train(config, forged, resume=True, progress=False)
+    assert "\n" not in str(err.value)
+
+
 def test_ipm_run_and_seed_grouping(tmp_path):
     """IPM trains too; a seed trained alone logs what it logs when trained with others."""
     alone = tmp_path / "alone"

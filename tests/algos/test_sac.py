@@ -1,5 +1,6 @@
 """SAC losses, regularisers and the rank-adaptation step against NumPy references."""
 
+import dataclasses
 import functools
 
 import jax
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from adarl.algos import SAC_FAMILY, sac
-from adarl.nets import mlp
+from adarl.nets import mlp, rank
 from adarl.nets.regularisers import parseval_penalty
 from adarl.train import buffer as replay
 
@@ -336,3 +337,126 @@ def test_narrowing_bottlenecks_keeps_the_networks_function(adarl_run):
         atol=1e-5,
     )
     assert {k: int(v) for k, v in sac.rank_state(narrow_spec, narrow).items()} == ranks
+
+
+def test_truncate_without_retain_test_is_the_rule_alone(adarl_run):
+    """`retain_tolerance=None` (the paper's text as before the retain clause): every bottleneck
+    gets exactly `rank.truncate_bottleneck`'s factors, bit for bit."""
+    spec, _, state = adarl_run
+    new, report = sac.truncate(spec, state)
+    c = spec.config
+    p, m = state["actor"]["trunk"][1], state["masks"]["actor"][1]
+    w1, w2, mask, s, proposed = rank.truncate_bottleneck(p["w1"], p["w2"], m, c.beta, c.rank_rule)
+    for got, want in ((new["actor"]["trunk"][1]["w1"], w1), (new["actor"]["trunk"][1]["w2"], w2)):
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
+    np.testing.assert_array_equal(np.asarray(new["masks"]["actor"][1]), np.asarray(mask))
+    q = state["critic"][1]
+    trunc = jax.vmap(lambda a, b, k: rank.truncate_bottleneck(a, b, k, c.beta, c.rank_rule))
+    w1, w2, mask, _, _ = trunc(q["w1"], q["w2"], state["masks"]["critic"][1])
+    np.testing.assert_array_equal(np.asarray(new["critic"][1]["w1"]), np.asarray(w1))
+    np.testing.assert_array_equal(np.asarray(new["critic"][1]["w2"]), np.asarray(w2))
+    assert int(report["actor_1"][2]) == int(report["actor_1"][3])  # new rank = candidate
+
+
+def test_retain_error_is_the_relative_output_change_on_replay_rows(adarl_run):
+    """The measured error, recomputed in NumPy: deterministic actions (actor) and each Q-network's
+    values (critics) of the network with only that bottleneck truncated, against the current one,
+    on the replay rows the truncation samples."""
+    spec, _, state = adarl_run
+    _, report = sac.truncate(spec, state)
+    c = spec.config
+    sample = replay.sample(
+        state["buffer"], jax.random.fold_in(state["key"], 0x7E7A1), c.retain_samples
+    )
+    obs, act = np.asarray(sample["obs"]), np.asarray(sample["act"])
+    low, high = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
+
+    def det_action(actor):
+        h = np_mlp(actor["trunk"], obs, True)
+        mu = h @ np.asarray(actor["mu"]["w"]) + np.asarray(actor["mu"]["b"])
+        return (high + low) / 2 + (high - low) / 2 * np.tanh(mu)
+
+    def masked(layers, masks):  # fold each bottleneck's mask into W1
+        out = [dict(p) for p in layers]
+        for i, m in enumerate(masks):
+            if m is not None:
+                out[i]["w1"] = np.asarray(out[i]["w1"]) * np.asarray(m)[..., None, :]
+        return out
+
+    actor = state["actor"]
+    p, m = actor["trunk"][1], state["masks"]["actor"][1]
+    w1, w2, mask, _, _ = rank.truncate_bottleneck(p["w1"], p["w2"], m, c.beta, c.rank_rule)
+    ref = det_action(dict(actor, trunk=masked(actor["trunk"], state["masks"]["actor"])))
+    trial_trunk = list(actor["trunk"])
+    trial_trunk[1] = dict(p, w1=w1, w2=w2)
+    trial = det_action(dict(actor, trunk=masked(trial_trunk, [None, mask])))
+    want = np.linalg.norm(trial - ref) / np.linalg.norm(ref)
+    assert float(report["actor_1"][4]) == pytest.approx(want, rel=1e-3, abs=1e-6)
+    assert want > 0
+
+    critic = masked(list(state["critic"]), state["masks"]["critic"])
+    q = state["critic"][1]
+    trunc = jax.vmap(lambda a, b, k: rank.truncate_bottleneck(a, b, k, c.beta, c.rank_rule))
+    w1, w2, mask, _, _ = trunc(q["w1"], q["w2"], state["masks"]["critic"][1])
+    trial_critic = list(state["critic"])
+    trial_critic[1] = dict(q, w1=w1, w2=w2)
+    trial_critic = masked(trial_critic, [None, mask, None])
+    for j in range(2):
+        ref_q, trial_q = np_q(critic, j, obs, act), np_q(trial_critic, j, obs, act)
+        want = np.linalg.norm(trial_q - ref_q) / np.linalg.norm(ref_q)
+        assert float(report[f"q{j + 1}_1"][4]) == pytest.approx(want, rel=1e-3, abs=1e-6)
+
+
+def test_retain_clause_keeps_the_old_rank_when_a_cut_costs_too_much(adarl_run):
+    spec, _, state = adarl_run
+    old = {k: int(v) for k, v in sac.rank_state(spec, state).items()}
+    strict = sac.with_widths(spec, sac.bottleneck_widths(spec))
+    strict = dataclasses.replace(
+        strict, config=dataclasses.replace(spec.config, retain_tolerance=1e-12)
+    )
+    new, report = sac.truncate(strict, state)
+    assert {k: int(v) for k, v in sac.rank_state(strict, new).items()} == old
+    for name, (_, _, new_rank, candidate, error) in report.items():
+        assert int(candidate) < old[name] and int(new_rank) == old[name]
+        assert float(error) > 1e-12
+    # the retained bottleneck is re-parameterised at its old rank: the same function
+    product = lambda p, m: (np.asarray(p["w1"]) * np.asarray(m)) @ np.asarray(p["w2"])  # noqa: E731
+    np.testing.assert_allclose(
+        product(new["actor"]["trunk"][1], new["masks"]["actor"][1]),
+        product(state["actor"]["trunk"][1], state["masks"]["actor"][1]),
+        atol=1e-4,
+    )
+    # a loose tolerance accepts every cut: the same ranks as without the test
+    loose = dataclasses.replace(
+        strict, config=dataclasses.replace(spec.config, retain_tolerance=1e9)
+    )
+    off, _ = sac.truncate(spec, state)
+    accepted, _ = sac.truncate(loose, state)
+    assert sac.rank_state(loose, accepted) == sac.rank_state(spec, off)
+
+
+@pytest.mark.parametrize("schedule", ["envelope", "restart"])
+def test_learning_rate_follows_the_chosen_schedule(schedule):
+    spec, state = make(
+        "adarl", lr_schedule=schedule, total_steps=21_000, update_after=1_010, truncate_every=5_000
+    )
+    c = spec.config
+    assert sac.total_updates(c) == 20_000 and sac.n_truncations(c) == 4
+    lr = lambda n, start, cuts: float(  # noqa: E731
+        sac.learning_rate(
+            spec,
+            dict(state, n_updates=n, iteration_start=start, n_truncations=cuts),
+            c.lr_actor,
+        )
+    )
+    if schedule == "envelope":
+        assert lr(0, 0, 0) == pytest.approx(c.lr_actor)  # the envelope starts at the base rate
+        assert lr(10_000, 0, 0) == pytest.approx(
+            c.lr_actor * (c.lr_min_ratio + (1 - c.lr_min_ratio) / 2)
+        )
+        assert lr(10_000, 10_000, 2) == 0.0  # just after a truncation: warming up
+        assert lr(20_000, 15_000, 3) == pytest.approx(c.lr_actor * c.lr_min_ratio)
+    else:
+        assert lr(10_000, 0, 0) == pytest.approx(c.lr_actor)  # constant before the first cut
+        assert lr(10_000, 10_000, 2) == 0.0
+        assert lr(15_000, 10_000, 2) == pytest.approx(c.lr_actor * c.lr_min_ratio)  # iteration end

@@ -3,7 +3,7 @@
 import pytest
 
 from adarl.cli.main import main
-from adarl.cli.train import parse_int_list
+from adarl.cli.train import add_arguments, build_config, parse_int_list
 
 
 @pytest.mark.parametrize(
@@ -30,6 +30,17 @@ from adarl.cli.train import parse_int_list
         (["--hidden", "64,0"], "hidden sizes must be"),
         (["--lanes", "0"], "lanes must be > 0, got 0"),
         (["--eval-every", "1001"], "eval-every must be a multiple of update-every (50), got 1001"),
+        (
+            ["--retain-tolerance", "0"],
+            "retain-tolerance must be a finite number > 0 (or off), got 0",
+        ),
+        (["--retain-tolerance", "-0.1"], "retain-tolerance must be a finite number > 0"),
+        (["--retain-tolerance", "nan"], "retain-tolerance must be a finite number"),
+        (["--retain-tolerance", "inf"], "retain-tolerance must be a finite number"),
+        (["--retain-tolerance", "tight"], "--retain-tolerance expects float, got 'tight'"),
+        (["--rank-rule", "srank"], "unknown rank rule 'srank'; allowed: cumulative, ratio, energy"),
+        (["--lr-schedule", "linear"], "unknown lr schedule 'linear'; allowed: envelope, restart"),
+        (["--retain-samples", "0"], "retain-samples must be > 0"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_creates_nothing(argv, needle, tmp_path, capsys):
@@ -93,3 +104,68 @@ def test_help_lists_config_fields(capsys):
         "--uncertainty-set",
     ):
         assert flag in out
+
+
+def config_for(*argv):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    return build_config(parser.parse_args(list(argv)))[1]
+
+
+def test_adarl_without_a_budget_uses_its_per_task_budget_and_truncates():
+    from adarl.algos import sac
+
+    for task, steps, d_t, cuts in [
+        ("hopper", 3_000_000, 1_000_000, 2),
+        ("walker2d", 3_000_000, 700_000, 4),
+        ("ant", 5_000_000, 1_000_000, 4),
+        ("humanoid", 5_000_000, 1_000_000, 4),
+    ]:
+        config = config_for("--algo", "adarl", "--task", task)
+        assert (config.total_steps, config.truncate_every) == (steps, d_t)
+        assert sac.n_truncations(config) == cuts
+    # flags and presets sit above the per-task budget; other algorithms keep theirs
+    assert config_for("--algo", "adarl", "--total-steps", "500000").total_steps == 500_000
+    assert config_for("--algo", "adarl", "--preset", "quickstart").total_steps == 150_000
+    assert (
+        config_for(
+            "--algo", "adarl", "--task", "walker2d", "--truncate-every", "9000"
+        ).truncate_every
+        == 9000
+    )
+    assert config_for("--algo", "sac", "--task", "hopper").total_steps == 1_000_000
+    assert config_for("--algo", "adarl").retain_tolerance is None  # see docs/algorithms.md
+    assert config_for("--algo", "adarl", "--retain-tolerance", "off").retain_tolerance is None
+    assert config_for("--algo", "adarl", "--retain-tolerance", "0.02").retain_tolerance == 0.02
+
+
+def test_adarl_budget_without_truncations_warns_once(tmp_path, capsys):
+    code = main(
+        [
+            "train",
+            "--preset",
+            "smoke",
+            "--total-steps",
+            "400",
+            "--out",
+            str(tmp_path / "r"),
+            "--no-progress",
+        ]
+    )
+    assert code == 0
+    err = capsys.readouterr().err
+    warnings = [line for line in err.splitlines() if line.startswith("warning:")]
+    assert warnings == [
+        "warning: total steps 400 with truncate-every (d_t) 500 gives 0 truncations: "
+        "the rank will not adapt"
+    ]
+
+
+def test_tasks_shows_the_adarl_default_budget(capsys):
+    assert main(["tasks", "walker2d"]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "adarl default budget: 3,000,000 steps, d_t = 700,000 gradient steps (4 truncations)" in out
+    )

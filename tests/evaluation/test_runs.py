@@ -46,7 +46,19 @@ def test_nested_config_sections_and_seed_forms():
 def test_method_labels_tell_variants_apart():
     assert runs.method_label({"algo": "sac-fixed-rank", "rank": 7}) == "sac-fixed-rank r=7"
     assert runs.method_label({"algo": "adarl", "rank_rule": "ratio"}) == "adarl (ratio rule)"
-    assert runs.method_label({"algo": "adarl", "rank_rule": "cumulative"}) == "adarl"
+    from adarl.algos.sac import SACConfig
+
+    assert runs.DEFAULT_RANK_RULE == SACConfig.rank_rule
+    assert runs.method_label({"algo": "adarl", "rank_rule": "energy"}) == "adarl"  # the default
+    assert runs.method_label({"algo": "adarl"}) == "adarl (cumulative rule)"  # older runs
+    assert (
+        runs.method_label({"algo": "adarl", "rank_rule": "cumulative", "retain_tolerance": 0.01})
+        == "adarl (cumulative rule, retain 0.01)"
+    )
+    assert (
+        runs.method_label({"algo": "adarl", "rank_rule": "energy", "retain_tolerance": None})
+        == "adarl"
+    )
     assert runs.sort_methods(["sac", "sac-fixed-rank r=16", "adarl (ratio rule)", "sac-fixed-rank r=2", "adarl"]) == [
         "adarl", "adarl (ratio rule)", "sac", "sac-fixed-rank r=2", "sac-fixed-rank r=16",
     ]  # fmt: skip
@@ -84,3 +96,23 @@ def test_checkpoints_and_policy_files(tmp_path):
         runs.select_checkpoint(bare)
     config = yaml.safe_load((run.path / "config.yaml").read_text())
     assert config["command"].startswith("adarl train")
+
+
+def test_rank_settling_reads_cuts_retained_cuts_and_the_last_change(tmp_path):
+    from adarl.evaluation import collect
+
+    (tmp_path / "truncations.csv").write_text(
+        "step,seed,layer,old_rank,proposed_rank,new_rank,candidate_rank,error,decision\n"
+        "100,0,actor_1,64,40,40,40,0.001,accepted\n"
+        "200,0,actor_1,40,30,40,30,0.2,retained\n"
+        "300,0,actor_1,40,39,39,39,0.01,accepted\n"
+        "100,1,actor_1,64,50,50,50,0.001,accepted\n"
+        "200,1,actor_1,50,60,50,50,0.0,unchanged\n"
+        "300,1,actor_1,50,49,50,49,0.3,retained\n"
+    )
+    run = runs.Run(path=tmp_path, config={"task": "hopper", "algo": "adarl"}, label="adarl")
+    table = collect.rank_settling(run).set_index("seed")
+    assert table.loc[0, "final_rank"] == 39 and table.loc[1, "final_rank"] == 50
+    assert list(table["cuts"]) == [2, 1] and list(table["retained"]) == [1, 1]
+    assert list(table["last_change"]) == [300, 100]
+    assert list(table["settled"]) == [False, True]

@@ -163,3 +163,140 @@ def test_restart_schedule_boundaries():
     assert f(50_000) == pytest.approx(lr * m)
     values = [f(t) for t in range(2000, 10_001, 500)]
     assert all(a >= b for a, b in zip(values, values[1:]))  # cosine only decreases
+
+
+def np_energy_rule(sigma, beta):
+    """The srank form literally: min{ℓ ∈ 1..d : Σ_{i≤ℓ}σ_i / Σ_i σ_i ≥ β} (d if the set is empty)."""
+    total = sigma.sum()
+    for ell in range(1, len(sigma) + 1):
+        if total > 0 and sigma[:ell].sum() / total >= beta:
+            return ell
+    return len(sigma)
+
+
+@pytest.mark.parametrize("beta", [1e-6, 0.02, 0.5, 0.9, 0.98, 0.999999])
+@pytest.mark.parametrize("squared", [False, True])
+def test_energy_rules_match_numpy_reference(beta, squared):
+    for sigma in spectra():
+        mass = sigma**2 if squared else sigma
+        # float32 cumulative sums can differ from float64 at an exact tie with β: skip those
+        if np.any(np.isclose(np.cumsum(mass) / mass.sum(), beta, rtol=0, atol=1e-6)):
+            continue
+        rule = "energy-squared" if squared else "energy"
+        got = int(rank.select_rank(jnp.asarray(sigma, jnp.float32), beta, rule))
+        assert got == np_energy_rule(mass, beta), (rule, beta, sigma[:5])
+
+
+def test_energy_rule_differs_from_eq5_by_at_most_one_component():
+    for sigma in spectra():
+        for beta in (0.3, 0.9, 0.98):
+            s = jnp.asarray(sigma, jnp.float32)
+            energy = int(rank.select_rank_energy(s, beta))
+            cumulative = int(rank.select_rank_cumulative(s, beta))
+            assert energy - cumulative in (0, 1)
+
+
+@pytest.mark.parametrize("rule", ["energy", "energy-squared"])
+def test_energy_rules_have_a_fixed_point(rule):
+    """A rank-r spectrum whose smallest non-zero value holds more than 1 − β of the mass is kept
+    at r; one whose smallest holds less is cut. Eq. 5 cuts both (see the test above)."""
+    beta = 0.9
+    kept = np.array([4.0, 3.0, 2.0, 2.0] + [0.0] * 60)  # last share 2/11, 4/33 > 0.1 (σ, σ²)
+    cut = np.array([4.0, 3.0, 2.0, 0.1] + [0.0] * 60)  # last share 0.1/9.1 < 0.1
+    for sigma, expected in ((kept, 4), (cut, 3)):
+        proposed = rank.select_rank(jnp.asarray(sigma, jnp.float32), beta, rule)
+        assert int(rank.next_rank(4, proposed)) == expected
+    assert int(rank.next_rank(4, rank.select_rank_cumulative(jnp.asarray(kept), beta))) < 4
+    # iterating the truncation on a bottleneck whose spectrum is already its own fixed point
+    rng = np.random.default_rng(3)
+    u, _ = np.linalg.qr(rng.normal(size=(20, 20)))
+    v, _ = np.linalg.qr(rng.normal(size=(20, 20)))
+    w = (u[:, :4] * kept[:4]) @ v[:, :4].T
+    w1, w2 = jnp.asarray(u[:, :16] * 1.0), jnp.asarray(np.linalg.pinv(u[:, :16]) @ w)
+    mask = jnp.ones(16)
+    for _ in range(3):
+        w1, w2, mask, _, _ = rank.truncate_bottleneck(w1, w2, mask, beta, rule)
+        assert int(mask.sum()) == 4
+
+
+def test_truncate_bottleneck_is_spectrum_then_reparameterise():
+    rng = np.random.default_rng(4)
+    w1 = jnp.asarray(rng.normal(size=(12, 8)), jnp.float32)
+    w2 = jnp.asarray(rng.normal(size=(8, 10)), jnp.float32)
+    mask = rank.rank_mask(6, 8)
+    a1, a2, am, s, proposed = rank.truncate_bottleneck(w1, w2, mask, 0.7)
+    u, s2, vt = rank.spectrum(w1, w2, mask)
+    b1, b2, bm = rank.reparameterise(u, s2, vt, rank.next_rank(6, proposed))
+    for x, y in ((a1, b1), (a2, b2), (am, bm), (s, s2)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert np.all(np.asarray(s)[6:] < 1e-5)  # rank 6: the masked components are zero
+
+
+def test_relative_error_and_retain_clause():
+    ref = jnp.asarray([3.0, 4.0])
+    assert float(rank.relative_error(jnp.asarray([3.0, 4.5]), ref)) == pytest.approx(0.1)
+    assert float(rank.relative_error(jnp.zeros(2), jnp.zeros(2))) == 0.0
+    assert np.isinf(float(rank.relative_error(jnp.ones(2), jnp.zeros(2))))
+    old, cand = jnp.asarray([10, 10, 10]), jnp.asarray([7, 7, 10])
+    err = jnp.asarray([0.01, 0.2, jnp.nan])
+    np.testing.assert_array_equal(np.asarray(rank.retain_or_cut(old, cand, err, 0.05)), [7, 10, 10])
+    np.testing.assert_array_equal(np.asarray(rank.retain_or_cut(old, cand, err, None)), [7, 7, 10])
+
+
+def np_envelope(t, start, base, w, total, m, warm_up):
+    env = lambda x: base * (m + (1 - m) * 0.5 * (1 + np.cos(np.pi * min(1.0, x / total))))  # noqa: E731
+    if warm_up and t - start < w:
+        return env(start + w) * (t - start) / w
+    return env(t)
+
+
+def test_envelope_schedule_matches_relora_reference():
+    base, w, total, m = 3e-3, 2000, 100_000, 0.1
+    for start in (0, 20_000, 61_000):
+        for t in range(start, start + 30_000, 250):
+            for warm_up in (False, True):
+                got = float(rank.envelope_learning_rate(t, start, base, w, total, m, warm_up))
+                assert got == pytest.approx(np_envelope(t, start, base, w, total, m, warm_up))
+    f = lambda t, s: float(rank.envelope_learning_rate(t, s, base, w, total, m, True))  # noqa: E731
+    assert f(20_000, 20_000) == 0.0  # each reset warms up from zero …
+    assert f(22_000, 20_000) == pytest.approx(np_envelope(22_000, 0, base, w, total, m, False))
+    assert f(100_000, 61_000) == pytest.approx(base * m)  # … to one envelope that ends at the floor
+    later = [f(t, 20_000) for t in range(22_000, 100_001, 1000)]
+    assert all(a >= b for a, b in zip(later, later[1:]))
+
+
+def test_svd_under_vmap_is_the_batched_svd_bit_for_bit():
+    x = jnp.asarray(np.random.default_rng(5).normal(size=(3, 2, 16, 12)), jnp.float32)
+    batched = jax.jit(jax.vmap(jax.vmap(lambda a: jnp.linalg.svd(a, full_matrices=False))))(x)
+    sequential = jax.jit(jax.vmap(jax.vmap(rank.svd)))(x)
+    for a, b in zip(batched, sequential):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+STRESS = """
+from adarl.runtime import configure_xla
+import os; os.environ.pop("XLA_FLAGS", None); configure_xla(cpus=2)
+import jax, jax.numpy as jnp, numpy as np
+from adarl.nets import rank
+def f(x):  # a vmapped SVD and an independent one, as the truncation of actor and critics
+    s = jax.vmap(jax.vmap(rank.svd))(x)[1]
+    return s.sum() + rank.svd(x[0, 0] @ x[1, 1])[1].sum()
+g = jax.jit(f)
+devices = jax.devices()
+xs = [jax.device_put(np.ones((3, 2, 64, 64), np.float32) + i, devices[i % len(devices)]) for i in range(2)]
+for _ in range(100):
+    [o.block_until_ready() for o in [g(x) for x in xs]]
+print("done")
+"""
+
+
+def test_concurrent_truncations_on_two_devices_do_not_deadlock():
+    """jaxlib's batched CPU SVD waits on the thread pool it runs in; two at once on two devices
+    hung the trainer (`rank.svd` runs batches sequentially instead)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-c", STRESS], capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0 and "done" in out.stdout, out.stderr[-2000:]

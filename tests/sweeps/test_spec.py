@@ -74,14 +74,25 @@ def test_presets_expand_to_the_documented_protocols():
         "paper-hopper-small",
         "paper-table1",
         "fixed-rank-sweep",
+        "fixed-rank-u",
         "rank-rule-ablation",
+        "rank-rules",
     }
     table1 = units["paper-table1"]
+    assert len(table1) == 28  # Parseval at each of the paper's three coefficients
     assert {(u.task, u.algo) for u in table1} == {
         (t, a)
         for t in ("hopper", "walker2d", "ant", "humanoid")
         for a in ("adarl", "sac", "sac-parseval", "sac-sparse", "rnac")
     }
+    for name in ("paper-table1", "paper-hopper-small"):
+        coefs = {
+            (u.task, float(_flags(u)["--parseval-coef"]))
+            for u in units[name]
+            if u.algo == "sac-parseval"
+        }
+        tasks = {u.task for u in units[name]}
+        assert coefs == {(t, c) for t in tasks for c in (1e-3, 1e-4, 1e-5)}, name
     assert all(u.seeds == (0, 1, 2, 3, 4) for u in table1)
     walker = next(u for u in table1 if u.id == "walker2d/adarl/seeds-0-4")
     assert _flags(walker)["--truncate-every"] == "700000"
@@ -94,7 +105,19 @@ def test_presets_expand_to_the_documented_protocols():
         "ratio",
     }
     small = units["paper-hopper-small"]
-    assert len(small) == 5 and all(u.total_steps <= 200_000 for u in small)
+    assert len(small) == 7 and all(u.total_steps <= 200_000 for u in small)
+    u_shape = units["fixed-rank-u"]
+    assert len(u_shape) == 7
+    assert {(u.task, u.algo, u.seeds, u.total_steps) for u in u_shape} == {
+        ("hopper", "sac-fixed-rank", (0, 1, 2), 150_000)
+    }
+    assert sorted(int(_flags(u)["--rank"]) for u in u_shape) == [1, 2, 4, 7, 13, 32, 64]
+    rules = units["rank-rules"]
+    assert {u.task for u in rules} == {"hopper", "walker2d"} and len(rules) == 8
+    assert {(_flags(u)["--rank-rule"], _flags(u)["--retain-tolerance"]) for u in rules} == {
+        (rule, tol) for rule in ("cumulative", "energy") for tol in ("none", "0.01")
+    }
+    assert all(_flags(u)["--truncate-every"] == "10000" for u in rules)
     assert [u.algo for u in units["smoke"]] == ["adarl", "sac"]
 
 

@@ -37,7 +37,8 @@ def test_bad_sweep_file(tmp_path, capsys, write_spec, changes, message):
 
 
 def test_unknown_preset_and_broken_yaml(tmp_path, capsys):
-    assert "presets: fixed-rank-sweep, paper-hopper-small" in _run(capsys, "paper-table2")
+    listed = "presets: fixed-rank-sweep, fixed-rank-u, paper-hopper-small"
+    assert listed in _run(capsys, "paper-table2")
     broken = tmp_path / "b.yaml"
     broken.write_text("tasks: [hopper\n")
     assert "is not valid YAML" in _run(capsys, broken, "--out", tmp_path / "out")

@@ -62,10 +62,23 @@ class Crash(Exception):
     pass
 
 
-def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch):
+@pytest.mark.parametrize(
+    "rank_settings",
+    [{"rank_rule": "cumulative"}, {"rank_rule": "energy", "retain_tolerance": 1e-3}],
+    ids=["cumulative", "energy-retain"],
+)
+def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank_settings):
     # lanes of 2 seeds (vmapped) and 1 seed (on the second CPU device when there is one)
-    config = smoke_config(seeds=(0, 1, 2), lanes=2, total_steps=2_000, checkpoint_every=1_000)
+    config = smoke_config(
+        seeds=(0, 1, 2), lanes=2, total_steps=2_000, checkpoint_every=1_000, **rank_settings
+    )
     sac_loop.train(config, tmp_path / "full", progress=False)
+    cuts = io.read_csv(tmp_path / "full" / "truncations.csv")
+    assert len(cuts) == sac.n_truncations(config) * 3 * 3  # truncations × layers × seeds
+    decisions = {row["decision"] for row in cuts}
+    assert decisions <= {"accepted", "retained", "unchanged"}
+    if "retain_tolerance" in rank_settings:  # the retain clause refuses some of the cuts
+        assert "retained" in decisions and "accepted" in decisions
 
     original = sac_loop.Run.env_step
 

@@ -1,0 +1,147 @@
+"""What produced a run: package versions, adarl's git commit, Python, CPU and XLA flags.
+
+Every trainer writes `environment.json` into a new run folder (`write_environment`);
+`adarl report` lists the records and warns when runs compared were made with different versions
+of the packages in `COMPARED` (docs/run-format.md).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+from importlib import metadata
+from pathlib import Path
+
+from adarl import __version__
+
+FILE = "environment.json"
+FORMAT_VERSION = 1
+#: Distributions whose versions are recorded (by their installed metadata: nothing is imported).
+PACKAGES = ("jax", "jaxlib", "mujoco", "gymnasium", "numpy", "optax")
+#: Packages whose versions must agree for runs to be compared without a warning.
+COMPARED = ("jax", "mujoco", "gymnasium")
+GIT_TIMEOUT_S = 2.0
+
+
+def environment_record() -> dict:
+    """The record `write_environment` stores: a JSON-ready dict."""
+    return {
+        "format_version": FORMAT_VERSION,
+        "adarl": {"version": __version__, **_git_state()},
+        "python": {"version": platform.python_version(), "implementation": sys.implementation.name},
+        "packages": {name: _version(name) for name in PACKAGES},
+        "platform": {"system": platform.system(), "release": platform.release()},
+        "cpu": {
+            "model": _cpu_model(),
+            "machine": platform.machine(),
+            "cores": os.cpu_count(),
+            "usable_cores": len(os.sched_getaffinity(0))
+            if hasattr(os, "sched_getaffinity")
+            else os.cpu_count(),
+        },
+        "xla_flags": os.environ.get("XLA_FLAGS"),
+    }
+
+
+def write_environment(run_dir: str | os.PathLike) -> None:
+    """Write `environment_record()` to RUN_DIR/environment.json (atomically)."""
+    from adarl.train.io import atomic_write_json
+
+    atomic_write_json(Path(run_dir) / FILE, environment_record())
+
+
+def read_environment(run_dir: str | os.PathLike) -> dict | None:
+    """A run's record, or None if it has none (runs made before it was written) or it is
+    unreadable."""
+    try:
+        record = json.loads((Path(run_dir) / FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def summary(record: dict | None) -> dict[str, str]:
+    """One flat row for a table: adarl (+ commit), python, each package, cpu, cores, XLA_FLAGS;
+    "unknown" throughout for a run without a record."""
+    if record is None:
+        return dict.fromkeys(("adarl", "python", *PACKAGES, "cpu", "cores", "XLA_FLAGS"), "unknown")
+    adarl, cpu = record.get("adarl") or {}, record.get("cpu") or {}
+    version = str(adarl.get("version") or "unknown")
+    if adarl.get("git_commit"):
+        dirty = "+dirty" if adarl.get("git_dirty") else ""
+        version += f" ({adarl['git_commit'][:12]}{dirty})"
+    packages = record.get("packages") or {}
+    return {
+        "adarl": version,
+        "python": str((record.get("python") or {}).get("version") or "unknown"),
+        **{name: str(packages.get(name) or "unknown") for name in PACKAGES},
+        "cpu": str(cpu.get("model") or "unknown"),
+        "cores": str(cpu.get("cores") or "unknown"),
+        "XLA_FLAGS": str(record.get("xla_flags") or "—"),
+    }
+
+
+def mismatches(records: dict[str, dict | None]) -> list[str]:
+    """One line per package of `COMPARED` whose version differs between runs ({name: record});
+    runs without a record are left out of the comparison."""
+    lines = []
+    for package in COMPARED:
+        by_version: dict[str, list[str]] = {}
+        for name, record in records.items():
+            version = ((record or {}).get("packages") or {}).get(package)
+            if version:
+                by_version.setdefault(str(version), []).append(name)
+        if len(by_version) > 1:
+            groups = "; ".join(f"{v} ({', '.join(names)})" for v, names in by_version.items())
+            lines.append(f"runs were made with different {package} versions: {groups}")
+    return lines
+
+
+def _version(distribution: str) -> str | None:
+    try:
+        return metadata.version(distribution)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def _git_state() -> dict:
+    """adarl's commit and whether the checkout has uncommitted changes, when adarl is imported
+    from a git checkout (an editable install); None for both otherwise or if git fails."""
+    root = Path(__file__).resolve().parents[2]
+    state = {"git_commit": None, "git_dirty": None}
+    if not (root / ".git").exists():
+        return state
+    commit = _git(root, "rev-parse", "HEAD")
+    if commit:
+        state["git_commit"] = commit
+        status = _git(root, "status", "--porcelain", "--untracked-files=no")
+        state["git_dirty"] = None if status is None else bool(status)
+    return state
+
+
+def _git(root: Path, *args: str) -> str | None:
+    try:
+        out = subprocess.run(
+            ["git", "--no-optional-locks", "-C", str(root), *args],  # read-only
+            capture_output=True,
+            text=True,
+            timeout=GIT_TIMEOUT_S,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()
+
+
+def _cpu_model() -> str | None:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.lower().startswith("model name"):
+                    return line.partition(":")[2].strip()
+    except OSError:
+        pass
+    return platform.processor() or None

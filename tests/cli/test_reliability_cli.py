@@ -1,0 +1,89 @@
+"""Bad values and bad paths are caught before anything is written (docs/reliability.md): one line
+on stderr, exit code 2, no run folder left behind."""
+
+import os
+
+import pytest
+
+from adarl.cli.main import main
+
+SMOKE = ["--preset", "smoke", "--no-progress"]
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--lr-actor", "inf"], "lr-actor must be a finite number, got inf"),
+        (["--lr-critic", "nan"], "lr-critic must be a finite number, got nan"),
+        (["--total-steps", str(2**63)], "total-steps must fit in a 64-bit integer"),
+        (["--on-divergence", "maybe"], "unknown on-divergence 'maybe'; allowed: stop, continue"),
+        (["--buffer-size", str(10**15)], "GiB of memory; lower --buffer-size"),
+        # checked up front, not at the first evaluation (and not after training started)
+        (["--eval-dynamics", "fixed:bogus=1"], "unknown hopper parameter 'bogus'"),
+        (["--eval-dynamics", "nominal,fixed:mass_scale=50"], "implausible value 50"),
+        (["--dynamics", "fixed:torso_length=1e9"], "implausible value 1e+09 for torso_length"),
+        (["--algo", "rnac", "--lr", "inf"], "lr must be a finite number, got inf"),
+        (["--algo", "rnac", "--dynamics", "fixed:mass_scale=0.001"], "implausible value 0.001"),
+    ],
+)
+def test_bad_values_are_one_line_exit_2_and_write_nothing(argv, needle, tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["train", *SMOKE, *argv, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert needle in err, err
+    assert err.count("\n") == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("algo", ["sac", "rnac"])
+def test_out_that_is_a_file_or_not_writable_is_one_line_exit_2(algo, tmp_path, capsys, monkeypatch):
+    afile = tmp_path / "afile"
+    afile.write_text("mine\n")
+    argv = ["train", *SMOKE, "--algo", algo, "--out"]
+    assert main([*argv, str(afile)]) == 2
+    assert "is a file" in capsys.readouterr().err
+    assert main([*argv, str(afile / "run")]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+    assert afile.read_text() == "mine\n"
+    real_access = os.access
+    monkeypatch.setattr(  # tmp_path as on a read-only file system (root ignores permissions)
+        os,
+        "access",
+        lambda p, mode, **kw: False if str(p) == str(tmp_path) else real_access(p, mode),
+    )
+    assert main([*argv, str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "is not writable" in err and err.count("\n") == 1
+    assert not (tmp_path / "run").exists()
+
+
+def test_sweep_dry_run_checks_out(tmp_path, capsys):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    assert main(["sweep", "smoke", "--dry-run", "--out", str(afile)]) == 2
+    err = capsys.readouterr().err
+    assert "is a file" in err and err.count("\n") == 1
+    assert main(["sweep", "smoke", "--dry-run", "--out", str(tmp_path / "sweep")]) == 0
+    assert not (tmp_path / "sweep").exists()
+
+
+@pytest.mark.parametrize("command", ["evaluate", "export", "play"])
+def test_an_output_file_under_a_file_is_one_line_exit_2(command, tmp_path, capsys, monkeypatch):
+    from adarl.evaluation.synthetic import write_run
+
+    # `adarl play` sets these for MuJoCo; monkeypatch restores them afterwards
+    monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+    run = write_run(tmp_path, "r", seeds=(0,))
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    argv = {
+        "evaluate": ["evaluate", str(run), "--episodes", "1", "--out", str(afile / "x.csv")],
+        "export": ["export", str(run), "--out", str(afile / "p.npz")],
+        "play": ["play", str(run), "--video", str(afile / "v.gif")],
+    }[command]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "is a file, not a folder" in err and err.count("\n") == 1, err
+    assert afile.read_text() == "x"

@@ -1,0 +1,128 @@
+"""environment.json: what produced a run, written by both trainers, listed by `adarl report`."""
+
+import json
+import subprocess
+from importlib import metadata
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from adarl import __version__
+from adarl.algos import SAC_FAMILY, rnac, sac
+from adarl.evaluation import report
+from adarl.train import provenance, sac_loop
+
+ROOT = Path(provenance.__file__).resolve().parents[2]
+
+
+def test_record_has_versions_cpu_and_flags(monkeypatch):
+    monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+    record = provenance.environment_record()
+    assert record["format_version"] == provenance.FORMAT_VERSION
+    assert record["adarl"]["version"] == __version__
+    for name in ("jax", "jaxlib", "mujoco", "gymnasium", "numpy", "optax"):
+        assert record["packages"][name] == metadata.version(name)
+    assert record["python"]["version"].count(".") == 2
+    assert record["cpu"]["cores"] >= 1 and record["cpu"]["usable_cores"] >= 1
+    assert record["xla_flags"] == "--xla_force_host_platform_device_count=2"
+    json.dumps(record)  # JSON-ready
+
+
+def test_git_commit_from_a_checkout():
+    if not (ROOT / ".git").exists():
+        pytest.skip("adarl is not imported from a git checkout")
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        pytest.skip("git is not available")
+    record = provenance.environment_record()
+    assert record["adarl"]["git_commit"] == head
+    assert record["adarl"]["git_dirty"] in (True, False)
+
+
+@pytest.mark.parametrize(
+    "failure",
+    [FileNotFoundError("git"), subprocess.TimeoutExpired("git", 2.0)],
+    ids=["no-git", "timeout"],
+)
+def test_git_failure_is_tolerated(monkeypatch, failure):
+    def run(*args, **kwargs):
+        raise failure
+
+    monkeypatch.setattr(provenance.subprocess, "run", run)
+    adarl = provenance.environment_record()["adarl"]
+    assert adarl == {"version": __version__, "git_commit": None, "git_dirty": None}
+
+
+def test_write_and_read(tmp_path):
+    provenance.write_environment(tmp_path)
+    record = json.loads((tmp_path / "environment.json").read_text())
+    assert provenance.read_environment(tmp_path) == record
+    assert provenance.read_environment(tmp_path / "missing") is None
+    (tmp_path / "environment.json").write_text("{not json")
+    assert provenance.read_environment(tmp_path) is None
+
+
+def _record(**packages):
+    return {"packages": {"jax": "0.10.2", "mujoco": "4.0.0", "gymnasium": "1.4.0", **packages}}
+
+
+def test_mismatches_one_line_per_package():
+    records = {
+        "a": _record(),
+        "b": _record(jax="0.4.30", gymnasium="1.2.0", numpy="1.0"),
+        "c": None,  # no environment.json: not compared
+    }
+    assert provenance.mismatches(records) == [
+        "runs were made with different jax versions: 0.10.2 (a); 0.4.30 (b)",
+        "runs were made with different gymnasium versions: 1.4.0 (a); 1.2.0 (b)",
+    ]
+    assert provenance.mismatches({"a": _record(), "b": _record(numpy="9"), "c": None}) == []
+
+
+def test_report_lists_environments_and_warns(tmp_path, capsys):
+    runs = []
+    for name, record in [("r1", _record()), ("r2", _record(mujoco="3.2.0")), ("old", None)]:
+        path = tmp_path / name
+        path.mkdir()
+        if record is not None:
+            (path / "environment.json").write_text(json.dumps(record))
+        runs.append(SimpleNamespace(path=path))
+    (tmp_path / "out" / "tables").mkdir(parents=True)
+    notes = []
+    section = report.environment_section(runs, tmp_path / "out", notes)
+    line = f"runs were made with different mujoco versions: 4.0.0 ({runs[0].path}); 3.2.0 ({runs[1].path})"
+    assert notes == [f"Warning: {line}."]
+    assert capsys.readouterr().err == f"adarl: warning: {line}\n"
+    table = (tmp_path / "out" / "tables" / "environments.csv").read_text().splitlines()
+    assert table[0].startswith("run,adarl,python,jax,jaxlib,mujoco,gymnasium")
+    assert len(table) == 4 and table[3].startswith(f"{runs[2].path},unknown,unknown")
+    assert "3.2.0" in section.text and section.title == "Environments"
+
+
+class Stop(Exception):
+    pass
+
+
+def _stop(*args, **kwargs):
+    raise Stop
+
+
+def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
+    monkeypatch.setattr(sac_loop.Run, "fresh", _stop)  # stop right after the run is created
+    values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    with pytest.raises(Stop):
+        sac_loop.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
+    record = provenance.read_environment(tmp_path / "run")
+    assert record["packages"]["jax"] == metadata.version("jax")
+
+
+def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
+    monkeypatch.setattr(rnac, "init_states", _stop)  # stop before any JAX work
+    with pytest.raises(Stop):
+        rnac.train(rnac.RNACConfig(**rnac.PRESETS["smoke"]), tmp_path / "run", progress=False)
+    record = provenance.read_environment(tmp_path / "run")
+    assert record["packages"]["mujoco"] == metadata.version("mujoco")
