@@ -170,8 +170,7 @@ def build_config(args: argparse.Namespace):
             raise UsageError(f"--{name.replace('_', '-')} does not apply to --algo {algo}")
         flags[name] = parse_value(name, text, _type_text(hints[name]))
     # the algorithm's per-task defaults sit below the preset and the flags
-    task = flags.get("task", module.PRESETS[preset].get("task", values.get("task")))
-    task = task or next(f.default for f in dataclasses.fields(cls) if f.name == "task")
+    task = flags.get("task", module.PRESETS[preset].get("task", cls.task))
     values.update(TASK_DEFAULTS.get(algo, {}).get(task, {}))
     values.update(module.PRESETS[preset])
     values.update(flags)

@@ -24,6 +24,11 @@ import numpy as np
 REDRAWS = 4
 
 
+def row_bytes(obs_dim: int, act_dim: int) -> int:
+    """Bytes per buffer row: float32 obs, act and rew, uint8 term and valid (`init_buffer`)."""
+    return 4 * (obs_dim + act_dim + 1) + 2
+
+
 def init_buffer(capacity: int, obs_dim: int, act_dim: int) -> dict:
     """An empty buffer (NumPy arrays; they move to the device with the rest of the state)."""
     return {

@@ -96,6 +96,11 @@ def check_new_run_dir(run_dir: str | os.PathLike) -> None:
             f"run folder {run_dir} is being written by another adarl process (pid {holder}); "
             "choose another --out"
         )
+    refuse_non_empty(run_dir)
+
+
+def refuse_non_empty(run_dir: Path) -> None:
+    """A one-line UsageError if `run_dir` holds anything but its lock file."""
     if run_dir.exists() and any(p.name != LOCK_FILE for p in run_dir.iterdir()):
         raise UsageError(
             f"run folder {run_dir} already exists and is not empty; "
@@ -158,12 +163,12 @@ class RunLock:
                 f"(pid {pid}); wait for it to end or stop it"
             ) from None
         self._handle = handle
-        if new and any(p.name != LOCK_FILE for p in self.run_dir.iterdir()):
-            self.release()
-            raise UsageError(
-                f"run folder {self.run_dir} already exists and is not empty; "
-                f"resume it with --resume {self.run_dir} or choose another --out"
-            )
+        if new:  # it may have filled up since the check before the lock
+            try:
+                refuse_non_empty(self.run_dir)
+            except UsageError:
+                self.release()
+                raise
         with fs_errors(path):
             handle.seek(0)
             handle.truncate()

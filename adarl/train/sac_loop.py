@@ -153,9 +153,8 @@ class Run:
         self.fns = compile_functions(self.spec)
         self.layer_names = sac.bottleneck_names(config)
         self.lane_seeds = split_lanes(self.n, config.lanes)
-        row_bytes = 4 * (self.spec.obs_dim + self.spec.act_dim + 1) + 2  # replay.init_buffer
         io.check_memory(
-            self.n * config.buffer_size * row_bytes,
+            self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             f"the replay buffers ({self.n} seeds x buffer-size {config.buffer_size})",
         )
         for label in config.eval_dynamics:  # checked now, not at the first evaluation

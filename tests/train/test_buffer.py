@@ -107,3 +107,9 @@ def test_chunk_rows_do_not_share_memory_with_the_builder():
         assert not any(np.shares_memory(array, mine) for mine in owned)
     builder.clear()
     assert rows["valid"][0, 0] == 1 and n[0] == 1
+
+
+def test_row_bytes_is_what_a_buffer_allocates():
+    buf = replay.init_buffer(10, 11, 3)
+    per_row = sum(v.nbytes for k, v in buf.items() if k not in ("ptr", "size")) // 10
+    assert replay.row_bytes(11, 3) == per_row
