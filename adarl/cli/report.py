@@ -29,6 +29,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--rnac-checkpoint", default="final", metavar="final|best",
         help="RNAC's final checkpoint (default), or its best by evaluation as its original reports",
     )  # fmt: skip
+    parser.add_argument(
+        "--contrast", action="append", default=[], metavar="FIELD[=REFERENCE]",
+        help="also tabulate each value of a config field minus REFERENCE (default: the first "
+        "value in sorted order) among runs equal in all else, with bootstrap CIs; repeatable",
+    )  # fmt: skip
 
 
 def command_line(args: argparse.Namespace) -> str:
@@ -41,6 +46,8 @@ def command_line(args: argparse.Namespace) -> str:
         parts.append("--skip-incomplete")
     if args.rnac_checkpoint != "final":
         parts += ["--rnac-checkpoint", args.rnac_checkpoint]
+    for contrast in args.contrast:
+        parts += ["--contrast", contrast]
     return shlex.join(parts)
 
 
@@ -53,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
         skip_incomplete=args.skip_incomplete,
         command=command_line(args),
         rnac_checkpoint=args.rnac_checkpoint,
+        contrasts=tuple(args.contrast),
     )
     out = build_report(args.run_dirs, args.out, options)
     print(f"report written to {out}/index.md")

@@ -14,6 +14,7 @@ Layout of the report folder::
     tables/probability_of_improvement.{md,csv}
     tables/performance_profiles.csv
     tables/parseval.{md,csv}     every Parseval coefficient's cell (Table 1 keeps the best)
+    tables/contrast_FIELD.{md,csv}  with --contrast FIELD: differences along one setting, CIs
     tables/fixed_rank.{md,csv}   final return per fixed rank (bias–variance sweep)
     tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
     tables/runs.csv
@@ -37,11 +38,14 @@ import pandas as pd
 
 from adarl import __version__
 from adarl.errors import UsageError, check_choice
-from adarl.evaluation import collect, compare, figures, selection, tables
+from adarl.evaluation import collect, compare, figures, selection, stats, tables
 from adarl.evaluation.runs import (
     Run,
     config_value,
+    differing_fields,
     find_runs,
+    flatten_config,
+    method_label,
     select_checkpoint,
     sort_methods,
     sort_tasks,
@@ -63,6 +67,7 @@ class ReportOptions:
     skip_incomplete: bool = False
     command: str = ""
     rnac_checkpoint: str = "final"  # final, or best (by evaluation, as RNAC's original reports)
+    contrasts: tuple[str, ...] = ()  # FIELD or FIELD=REFERENCE: differences along one setting
 
 
 @dataclass
@@ -84,6 +89,8 @@ def build_report(
     check_choice("--rnac-checkpoint", options.rnac_checkpoint, selection.RNAC_CHECKPOINTS)
     runs, notes = usable_runs(find_runs(paths), options.skip_incomplete)
     check_rows(runs)
+    for contrast in options.contrasts:
+        contrast_groups(runs, contrast)  # a bad field or reference fails before anything is written
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.tmp-"))
     try:
@@ -187,6 +194,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     if not parseval.cells.empty:
         sections.append(parseval_section(parseval, folder))
     sections += statistics_sections(scores, folder, options, notes)
+    sections += [contrast_section(main, finals, c, folder, options) for c in options.contrasts]
     sections.append(training_section(main, folder, colours))
     sections.append(rank_section(runs, folder))
     sections.append(robustness_section(runs, folder, colours, notes))
@@ -324,6 +332,106 @@ def parseval_section(parseval: selection.ParsevalSelection, folder: Path) -> Sec
         "chosen on the same metric it reports, so that cell is optimistic.\n\n" + md
     )
     return Section("Supplementary: Parseval coefficients", text, files)
+
+
+def contrast_groups(runs: Sequence[Run], contrast: str) -> tuple[str, str, dict]:
+    """Split `FIELD[=REFERENCE]` and group the runs that differ only in FIELD.
+
+    Returns `(field, reference, groups)`, groups mapping `(task, method, other settings)` to
+    `{value: [runs]}`; "other settings" names the fields (seeds and launch details aside) that
+    differ between groups of the same task and method. The reference defaults to the first value
+    in sorted order. Raises `UsageError` when no run has FIELD or no run has REFERENCE.
+    """
+    field, _, reference = contrast.partition("=")
+    keyed = []
+    for r in runs:
+        flat = flatten_config(r.config)
+        keys = [k for k in flat if k.split(".")[-1] == field]
+        if not keys:
+            continue
+        keyed.append((r, str(flat[keys[0]])))
+    if not keyed:
+        raise UsageError(f"--contrast {contrast!r}: no run has a config field {field!r}")
+    values = sorted({value for _, value in keyed})
+    reference = reference or values[0]
+    if reference not in values:
+        raise UsageError(
+            f"--contrast {contrast!r}: no run has {field}={reference}; the runs have "
+            f"{', '.join(values)}"
+        )
+    by_method: dict[tuple[str, str], list] = {}
+    for r, value in keyed:
+        by_method.setdefault((r.task, method_label(r.config)), []).append((r, value))
+    groups: dict[tuple[str, str, str], dict[str, list[Run]]] = {}
+    for (task, method), members in by_method.items():
+        varying = differing_fields([r.config for r, _ in members], ignore={field})
+        for r, value in members:
+            flat = flatten_config(r.config)
+            others = ", ".join(f"{k.split('.')[-1]}={flat[k]}" for k in varying if k in flat)
+            groups.setdefault((task, method, others), {}).setdefault(value, []).append(r)
+    return field, reference, groups
+
+
+def contrast_section(
+    runs: list[Run], finals: dict, contrast: str, folder: Path, options: ReportOptions
+) -> Section:
+    """Final nominal return of each value of one setting minus the reference value's, among runs
+    that agree on everything else, with a bootstrap CI over seeds (`stats.difference_ci`)."""
+    field, reference, groups = contrast_groups(runs, contrast)
+    rows = []
+    for (task, method, others), by_value in groups.items():
+        if reference not in by_value:
+            continue
+
+        def seed_scores(members: list[Run]) -> np.ndarray:
+            return np.concatenate([finals[r.path][0]["score"].to_numpy(float) for r in members])
+
+        base = seed_scores(by_value[reference])
+        for value in sorted(v for v in by_value if v != reference):
+            other = seed_scores(by_value[value])
+            if not len(base) or not len(other):
+                continue
+            ci = stats.difference_ci(
+                other, base, options.bootstrap_reps, options.confidence, options.seed
+            )
+            rows.append(
+                {
+                    "task": task,
+                    "method": method,
+                    "held fixed": others or "—",
+                    "contrast": f"{field}: {value} − {reference}",
+                    f"mean ({reference})": base.mean(),
+                    "mean (other)": other.mean(),
+                    "difference": ci.point,
+                    "ci low": ci.low,
+                    "ci high": ci.high,
+                    "seeds": f"{len(other)} vs {len(base)}",
+                }
+            )
+    df = pd.DataFrame(rows)
+    stem = f"tables/contrast_{_slug(field)}"
+    files = [_write(folder, f"{stem}.csv", _csv(df))]
+    if df.empty:
+        return Section(f"Contrast: {field}", f"No pair of runs differs only in `{field}`.", files)
+    pct = int(round(100 * options.confidence))
+    md = tables.markdown_table(
+        ["task", "method", "held fixed", "contrast", f"mean ({reference})", "mean (other)",
+         f"difference [{pct}% CI]", "seeds"],
+        [
+            [r["task"], r["method"], r["held fixed"], r["contrast"], f"{r[f'mean ({reference})']:.1f}",
+             f"{r['mean (other)']:.1f}", f"{r['difference']:.1f} [{r['ci low']:.1f}, {r['ci high']:.1f}]",
+             r["seeds"]]
+            for r in rows
+        ],
+    )  # fmt: skip
+    files.append(_write(folder, f"{stem}.md", md))
+    text = (
+        f"Final nominal return with `{field}` set to each value minus the same runs' setting at "
+        f"`{reference}`, everything else equal; {pct}% percentile-bootstrap interval over seeds "
+        "(each side resampled independently). An interval that contains 0 shows no difference "
+        "at this number of seeds.\n\n" + md
+    )
+    return Section(f"Contrast: {field}", text, files)
 
 
 def _seed_counts(table: tables.ScoreTable) -> str:

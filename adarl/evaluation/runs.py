@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -22,7 +22,7 @@ POLICY_PATTERN = re.compile(r"^policy_seed_(\d+)\.npz$")
 
 # config fields that say how a run was launched, not what was trained; runs differing only in
 # these are the same method
-_LAUNCH_KEYS = {
+LAUNCH_KEYS = {
     "seeds",
     "seed",
     "out",
@@ -192,6 +192,18 @@ def find_runs(paths: Iterable[str | os.PathLike]) -> list[Run]:
 DEFAULT_RANK_RULE = "energy"
 
 
+def differing_fields(configs: Sequence[dict], ignore: Collection[str] = ()) -> list[str]:
+    """Flattened config keys whose values differ between `configs`, launch fields and fields
+    named in `ignore` (by their last component) aside; sorted."""
+    flats = [flatten_config(c) for c in configs]
+    return [
+        k
+        for k in sorted(set().union(*flats))
+        if k.split(".")[-1] not in LAUNCH_KEYS | set(ignore)
+        and len({repr(f.get(k)) for f in flats}) > 1
+    ]
+
+
 def method_label(config: dict) -> str:
     """The name a run's method has in tables and legends: the algo, plus the setting that makes
     a variant (the rank of `sac-fixed-rank`, a non-default rank rule or the retain clause's
@@ -225,12 +237,7 @@ def label_runs(runs: list[Run]) -> list[Run]:
         if len(members) < 2 or not _seeds_overlap([runs[i] for i in members]):
             continue
         flats = [flatten_config(runs[i].config) for i in members]
-        keys = sorted(set().union(*flats))
-        differing = [
-            k
-            for k in keys
-            if k.split(".")[-1] not in _LAUNCH_KEYS and len({repr(f.get(k)) for f in flats}) > 1
-        ]
+        differing = differing_fields([runs[i].config for i in members])
         for i, flat in zip(members, flats):
             extra = ", ".join(f"{k.split('.')[-1]}={flat.get(k)}" for k in differing)
             out[i] = replace(runs[i], label=f"{label} ({extra})" if extra else label)

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from adarl.evaluation import tables
-from adarl.evaluation.runs import _LAUNCH_KEYS, Run, config_value, flatten_config, sort_tasks
+from adarl.evaluation.runs import Run, config_value, differing_fields, sort_tasks
 
 PARSEVAL = "sac-parseval"
 COEF = "parseval_coef"
@@ -134,11 +134,4 @@ def parseval_markdown(cells: pd.DataFrame) -> str:
 
 def _other_differences(group: Sequence[Run]) -> list[str]:
     """Config fields (besides the coefficient and launch fields) that differ within `group`."""
-    flats = [flatten_config(r.config) for r in group]
-    keys = sorted(set().union(*flats))
-    return [
-        k
-        for k in keys
-        if k.split(".")[-1] not in _LAUNCH_KEYS | {COEF}
-        and len({repr(f.get(k)) for f in flats}) > 1
-    ]
+    return differing_fields([r.config for r in group], ignore={COEF})

@@ -173,3 +173,34 @@ def test_a_failure_midway_leaves_the_previous_report_untouched(tmp_path, monkeyp
         main(["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "20"])
     assert (out / "index.md").read_text() == before
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_contrast_tables_each_value_against_the_reference(tmp_path, no_figures, capsys):
+    """Two factors crossed (as the `physics` preset): each contrast pairs runs equal in the
+    other factor; its difference is the means' difference, inside its bootstrap interval."""
+    for physics, shift in (("consistent", 0.0), ("ompo", 0.3)):
+        for version, vshift in (("v5", 0.0), ("v4", -0.2)):
+            write_run(tmp_path / "runs", f"{physics}-{version}", algo="sac",
+                      quality=1.0 + shift + vshift,
+                      extra_config={"physics": physics, "model_version": version})  # fmt: skip
+    out = tmp_path / "report"
+    argv = ["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "300"]
+    assert main([*argv, "--contrast", "physics", "--contrast", "model_version=v5"]) == 0
+    physics = pd.read_csv(out / "tables" / "contrast_physics.csv")
+    assert sorted(physics["held fixed"]) == ["model_version=v4", "model_version=v5"]
+    assert set(physics["contrast"]) == {"physics: ompo − consistent"}
+    assert (
+        physics["difference"] - (physics["mean (other)"] - physics["mean (consistent)"])
+    ).abs().max() < 0.01  # the CSV rounds to 3 decimals
+    assert (physics["ci low"] <= physics["difference"]).all() and (
+        physics["difference"] <= physics["ci high"]
+    ).all()
+    assert (physics["difference"] > 200).all()  # quality +0.3 ≈ +300 return
+    version = pd.read_csv(out / "tables" / "contrast_model_version.csv")
+    assert (
+        set(version["contrast"]) == {"model_version: v4 − v5"} and (version["difference"] < 0).all()
+    )
+    index = (out / "index.md").read_text()
+    assert "## Contrast: physics" in index and "--contrast model_version=v5" in index
+    _fails([*argv, "--contrast", "nosuchfield"], capsys, "no run has a config field 'nosuchfield'")
+    _fails([*argv, "--contrast", "physics=mars"], capsys, "consistent, ompo")

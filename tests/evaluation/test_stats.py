@@ -106,3 +106,18 @@ def test_normalise_and_mean_std():
     assert stats.mean_std([1.0, 2.0, 3.0]) == pytest.approx((2.0, 1.0))
     m, s = stats.mean_std([4.0])
     assert m == 4.0 and np.isnan(s)
+
+
+def test_difference_ci_against_a_numpy_loop():
+    x, y = np.array([3.0, 5.0, 10.0]), np.array([1.0, 2.0, 2.5, 4.0])
+    got = stats.difference_ci(x, y, reps=400, confidence=0.9, seed=3)
+    rng = np.random.default_rng(3)  # the same draws, one resample at a time
+    ix = rng.integers(0, 3, size=(400, 3, 1))[:, :, 0]
+    iy = rng.integers(0, 4, size=(400, 4, 1))[:, :, 0]
+    diffs = x[ix].mean(axis=1) - y[iy].mean(axis=1)
+    assert got.point == pytest.approx(x.mean() - y.mean())
+    assert got.low == pytest.approx(np.percentile(diffs, 5.0))
+    assert got.high == pytest.approx(np.percentile(diffs, 95.0))
+    assert got.low < got.point < got.high
+    same = stats.difference_ci(np.full(3, 2.0), np.full(5, 2.0), reps=100)
+    assert (same.point, same.low, same.high) == (0.0, 0.0, 0.0)
