@@ -79,6 +79,28 @@ def final_scores(run: Run) -> tuple[pd.DataFrame, str]:
     Preferred: an `adarl evaluate --dynamics nominal` of the final checkpoint (the mean over its
     episodes); else the last evaluation logged during training (eval.csv, dynamics `nominal`).
     """
+    episodes, note = final_nominal_episodes(run)
+    if episodes.empty:
+        return _scores(pd.Series(dtype=float)), note
+    return _scores(episodes.groupby("seed")["return"].mean()), note
+
+
+def final_behaviour(run: Run) -> pd.DataFrame:
+    """What each seed's final policy does on nominal dynamics, from the episodes behind its final
+    return: columns `seed, length, distance` (means over episodes; `distance`, the root body's
+    forward displacement, is recorded by `adarl evaluate` only, else NaN)."""
+    episodes, _ = final_nominal_episodes(run)
+    columns = ["length", "distance"]
+    if episodes.empty:
+        return pd.DataFrame(columns=["seed", *columns])
+    present = [c for c in columns if c in episodes]
+    means = episodes.groupby("seed")[present].mean().reindex(columns=columns)
+    return means.reset_index()
+
+
+def final_nominal_episodes(run: Run) -> tuple[pd.DataFrame, str]:
+    """The nominal episodes of the final policy (see `final_scores` for which ones) and a note
+    saying where they came from; empty with note "none" if there are none."""
     last = final_step(run)
     for ev in evaluations(run):
         meta = ev.meta
@@ -90,16 +112,13 @@ def final_scores(run: Run) -> tuple[pd.DataFrame, str]:
             and meta.get("checkpoint_step") == last
             and not meta.get("max_episode_steps")
         ):
-            scores = ev.table.groupby("seed")["return"].mean()
-            note = f"`adarl evaluate` ({meta.get('episodes')} episodes, step {last})"
-            return _scores(scores), note
+            return ev.table, f"`adarl evaluate` ({meta.get('episodes')} episodes, step {last})"
     log = _nominal_evaluations(run)
     if log.empty:
-        return _scores(pd.Series(dtype=float)), "none"
+        return log, "none"
     at_last = log[log["step"] == log.groupby("seed")["step"].transform("max")]
-    scores = at_last.groupby("seed")["return"].mean()
     steps = sorted(int(s) for s in at_last["step"].unique())
-    return _scores(scores), f"eval.csv at step {', '.join(map(str, steps))}"
+    return at_last, f"eval.csv at step {', '.join(map(str, steps))}"
 
 
 def best_scores(run: Run) -> tuple[pd.DataFrame, str]:

@@ -31,7 +31,7 @@ from adarl.train.io import atomic_write_json, atomic_write_text
 
 EVAL_SEED = 100_000  # far from the seeds training uses for its own environments
 EVALUATIONS_DIR = "evaluations"
-COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length"]
+COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length", "distance"]
 
 
 @dataclass(frozen=True)

@@ -193,6 +193,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     sections.append(table1_section(scores, folder, protocol_notes(runs, parseval, options)))
     if not parseval.cells.empty:
         sections.append(parseval_section(parseval, folder))
+    sections.append(behaviour_section(main, folder))
     sections += statistics_sections(scores, folder, options, notes)
     sections += [contrast_section(main, finals, c, folder, options) for c in options.contrasts]
     sections.append(training_section(main, folder, colours))
@@ -289,6 +290,36 @@ def table1_section(scores: pd.DataFrame, folder: Path, labels: Sequence[str] = (
         f"{_seed_counts(table)}.\n\n{tables.table_markdown(table)}{legend}"
     )
     return Section("Table 1: final return under nominal dynamics", text, files)
+
+
+def behaviour_section(runs: list[Run], folder: Path) -> Section:
+    """Episode length and forward distance of the final policies on nominal dynamics: a return
+    of ~1,000 on Hopper can be a policy that stands still for 1,000 steps."""
+    frames = [collect.final_behaviour(r).assign(task=r.task, method=r.label) for r in runs]
+    df = pd.concat([f for f in frames if not f.empty] or [pd.DataFrame()], ignore_index=True)
+    title = "What the final policies do"
+    if df.empty:
+        return Section(title, "No nominal evaluations found.\n")
+    rows = []
+    for (task, method), group in df.groupby(["task", "method"], sort=False):
+        cells = [task, method]
+        for column, digits in (("length", 0), ("distance", 2)):
+            values = group[column].dropna().to_numpy(float)
+            mean, std = stats.mean_std(values) if len(values) else (np.nan, np.nan)
+            cells.append(tables.format_mean_std(mean, std, len(values), digits))
+        rows.append(cells)
+    md = tables.markdown_table(["task", "method", "episode length", "forward distance (m)"], rows)
+    path = _write(
+        folder, "tables/behaviour.csv", _csv(df[["task", "method", "seed", "length", "distance"]])
+    )
+    text = (
+        "Mean episode length (steps, of at most 1,000) and forward distance of the root body "
+        "(metres) of each seed's final policy on nominal dynamics, mean ± std over seeds. A "
+        "Hopper policy that only balances earns about 1,000 in 1,000 steps while moving ~0 m; "
+        "rank methods by return only together with this table. Distance is recorded by "
+        "`adarl evaluate` (— where only the training log exists).\n\n" + md
+    )
+    return Section(title, text, [path])
 
 
 def protocol_notes(

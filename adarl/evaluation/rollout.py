@@ -22,7 +22,9 @@ def run_episodes(
     `dynamics` is any spec `adarl.envs.parse_dynamics` accepts (`nominal`, `default`,
     `fixed:torso_length=0.5,…`); `overrides` are fixed parameter values on top. The env is seeded
     with `seed`, so the same policy, dynamics and seed give the same returns. Returns one dict per
-    episode: `episode, return, length` and `p_<param>` for the episode's physical parameters.
+    episode: `episode, return, length`, `distance` (forward displacement of the root body, x of
+    `qpos`: a policy that only balances earns Hopper's healthy reward with a distance near 0) and
+    `p_<param>` for the episode's physical parameters.
     `max_steps` (optional) cuts every episode after that many steps (for quick checks).
     """
     from adarl.envs import make
@@ -32,13 +34,15 @@ def run_episodes(
     try:
         for k in range(n_episodes):
             obs, info = env.reset(seed=seed + k)
+            start_x = float(env.unwrapped.data.qpos[0])
             total, length, done = 0.0, 0, False
             while not done:
                 obs, reward, terminated, truncated, info = env.step(policy(obs))
                 total += float(reward)
                 length += 1
                 done = terminated or truncated or (max_steps is not None and length >= max_steps)
-            row = {"episode": k, "return": total, "length": length}
+            distance = float(env.unwrapped.data.qpos[0]) - start_x
+            row = {"episode": k, "return": total, "length": length, "distance": distance}
             row.update({f"p_{name}": float(v) for name, v in info["dynamics"].items()})
             rows.append(row)
     finally:

@@ -204,3 +204,37 @@ def test_contrast_tables_each_value_against_the_reference(tmp_path, no_figures, 
     assert "## Contrast: physics" in index and "--contrast model_version=v5" in index
     _fails([*argv, "--contrast", "nosuchfield"], capsys, "no run has a config field 'nosuchfield'")
     _fails([*argv, "--contrast", "physics=mars"], capsys, "consistent, ompo")
+
+
+def test_behaviour_table_prefers_adarl_evaluate_with_distance(tmp_path, no_figures):
+    """Episode length comes from eval.csv when nothing else exists; an `adarl evaluate` of the
+    final checkpoint (which records forward distance) takes precedence for both."""
+    import json
+
+    write_run(tmp_path / "runs", "logged", algo="sac", seeds=(0, 1))
+    evaluated = write_run(tmp_path / "runs", "evaluated", algo="sac-sparse", seeds=(0, 1))
+    step = 10_000  # write_run's final checkpoint: its total_steps
+    (evaluated / "evaluations").mkdir()
+    pd.DataFrame(
+        {"step": step, "seed": [0, 0, 1, 1], "dynamics": "nominal", "episode": [0, 1, 0, 1],
+         "return": [10.0, 20.0, 30.0, 40.0], "length": [100, 300, 1000, 1000],
+         "distance": [0.5, 1.5, 3.0, 5.0]}
+    ).to_csv(evaluated / "evaluations" / "nominal.csv", index=False)  # fmt: skip
+    meta = {"dynamics": "nominal", "sweep": {}, "hold": {}, "episodes": 2,
+            "checkpoint_step": step, "final_checkpoint": True, "max_episode_steps": None}  # fmt: skip
+    (evaluated / "evaluations" / "nominal.json").write_text(json.dumps(meta))
+    out = tmp_path / "report"
+    assert (
+        main(["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "20"]) == 0
+    )
+    table = pd.read_csv(out / "tables" / "behaviour.csv").set_index(["method", "seed"])
+    assert (
+        table.loc[("sac-sparse", 0), "length"] == 200
+        and table.loc[("sac-sparse", 1), "distance"] == 4.0
+    )
+    assert table.loc[("sac", 0), "length"] == 1000 and pd.isna(table.loc[("sac", 0), "distance"])
+    index = (out / "index.md").read_text()
+    assert (
+        "## What the final policies do" in index
+        and "| hopper | sac-sparse | 600 ± 566 | 2.50 ± 2.12 |" in index
+    )
