@@ -14,6 +14,7 @@ from adarl.errors import UsageError, check_choice
 
 HELP = "train an algorithm (AdaRL, SAC baselines, RNAC) on a task, or resume a run"
 RUN_FLAGS = ("algo", "task", "dynamics", "seeds", "total_steps")
+REPORT_PRESETS = ("quickstart",)  # presets whose runs end with a report in RUN_DIR/report
 
 
 def _config_classes():
@@ -50,6 +51,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="continue a run from its newest complete checkpoint",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--report", action=argparse.BooleanOptionalAction, default=None,
+        help="write `adarl report` into RUN_DIR/report when training ends "
+        f"(default: on with --preset {' or '.join(REPORT_PRESETS)}, else off)",
+    )  # fmt: skip
     seen = {"algo"}
     for family, cls in _config_classes().items():
         group = parser.add_argument_group(f"{family.upper()}-family config fields")
@@ -226,6 +232,7 @@ def config_from_run(run_dir: Path):
 
 def run(args: argparse.Namespace) -> int:
     command = "adarl train " + shlex.join(sys.argv[2:]) if len(sys.argv) > 1 else "adarl train"
+    started = time.monotonic()
     if args.resume:
         given = [k[4:] for k, v in vars(args).items() if k.startswith("cfg_") and v is not None]
         if given or args.preset or args.out:
@@ -234,15 +241,34 @@ def run(args: argparse.Namespace) -> int:
         run_dir = Path(args.resume)
         family, config = config_from_run(run_dir)
         _trainer(family)(config, run_dir, True, not args.no_progress, command)
-        print(f"run folder: {run_dir}")
-        return 0
-    family, config = build_config(args)
-    task = getattr(config, "task", "task")
-    run_dir = (
-        Path(args.out)
-        if args.out
-        else Path("runs") / (f"{task}-{args.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
-    )
-    _trainer(family)(config, run_dir, False, not args.no_progress, command)
-    print(f"run folder: {run_dir}")
+    else:
+        family, config = build_config(args)
+        task = getattr(config, "task", "task")
+        run_dir = (
+            Path(args.out)
+            if args.out
+            else Path("runs") / (f"{task}-{args.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+        )
+        _trainer(family)(config, run_dir, False, not args.no_progress, command)
+    finish(run_dir, time.monotonic() - started, args.report, args.preset)
     return 0
+
+
+def wants_report(flag: bool | None, preset: str | None) -> bool:
+    """`--report`/`--no-report` decide; without either, the presets in `REPORT_PRESETS` report."""
+    return flag if flag is not None else preset in REPORT_PRESETS
+
+
+def finish(run_dir: Path, wall_seconds: float, report: bool | None, preset: str | None) -> None:
+    """The end-of-training summary, after the report when one is asked for (`--report`, or
+    a preset in `REPORT_PRESETS`)."""
+    from adarl.evaluation.summary import training_summary
+
+    report_dir = None
+    if wants_report(report, preset):
+        from adarl.evaluation.report import ReportOptions, build_report
+
+        report_dir = run_dir / "report"
+        command = shlex.join(["adarl", "report", str(run_dir), "--out", str(report_dir)])
+        build_report([run_dir], report_dir, ReportOptions(command=command))
+    print(training_summary(run_dir, wall_seconds, report_dir))

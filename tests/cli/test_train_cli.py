@@ -169,3 +169,24 @@ def test_tasks_shows_the_adarl_default_budget(capsys):
     assert (
         "adarl default budget: 3,000,000 steps, d_t = 700,000 gradient steps (4 truncations)" in out
     )
+
+
+def test_report_flag_writes_the_report_and_the_summary_names_it(tmp_path, capsys, monkeypatch):
+    from adarl.evaluation import report
+
+    monkeypatch.setattr(report, "_figure", lambda folder, fig, stem: [])  # drawing: tested apart
+    run_dir = tmp_path / "r"
+    argv = ["train", "--preset", "smoke", "--algo", "sac", "--out", str(run_dir), "--no-progress"]
+    assert main([*argv, "--report"]) == 0
+    out = capsys.readouterr().out
+    assert (run_dir / "report" / "index.md").is_file()
+    assert "done: sac on hopper, 1 seed(s) x 2,000 steps" in out
+    assert "final nominal return: " in out and f"report: {run_dir}/report/index.md" in out
+
+
+def test_quickstart_reports_unless_told_not_to():
+    from adarl.cli.train import wants_report
+
+    assert wants_report(None, "quickstart") and not wants_report(False, "quickstart")
+    assert not wants_report(None, "paper") and not wants_report(None, None)
+    assert wants_report(True, None)
