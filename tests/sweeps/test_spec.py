@@ -77,6 +77,9 @@ def test_presets_expand_to_the_documented_protocols():
         "fixed-rank-u",
         "rank-rule-ablation",
         "rank-rules",
+        "physics",
+        "repro-hopper",
+        "repro-walker2d",
     }
     table1 = units["paper-table1"]
     assert len(table1) == 28  # Parseval at each of the paper's three coefficients
@@ -119,6 +122,19 @@ def test_presets_expand_to_the_documented_protocols():
     }
     assert all(_flags(u)["--truncate-every"] == "10000" for u in rules)
     assert [u.algo for u in units["smoke"]] == ["adarl", "sac"]
+    physics = units["physics"]
+    assert {(u.task, _flags(u)["--physics"], _flags(u)["--model-version"]) for u in physics} == {
+        (t, p, v)
+        for t in ("hopper", "walker2d")
+        for p in ("consistent", "ompo")
+        for v in ("v5", "v4")
+    }
+    assert all(u.algo == "sac" and u.seeds == (0, 1, 2) for u in physics)
+    for task in ("hopper", "walker2d"):
+        repro = units[f"repro-{task}"]
+        assert len(repro) == 7 and {u.task for u in repro} == {task}
+        assert {u.algo for u in repro} == {"adarl", "sac", "sac-parseval", "sac-sparse", "rnac"}
+        assert {(u.seeds, u.total_steps) for u in repro} == {((0, 1, 2, 3, 4), 100_000)}
 
 
 def test_the_files_preset_reaches_the_algorithms_that_have_it():
