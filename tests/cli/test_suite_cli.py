@@ -81,3 +81,14 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, make_runs, extra
         err
     )
     assert _files(tmp_path) == before
+
+
+def test_a_ray_address_that_does_not_answer(tmp_path, capsys, tiny_suite):
+    pytest.importorskip("ray")
+    write_run(tmp_path, "hopper", seeds=(0,))
+    before = _files(tmp_path)
+    argv = ["evaluate", str(tmp_path), *FAST, "--suite", "tiny-2d", "--backend", "ray"]
+    assert main([*argv, "--address", "127.0.0.1:1"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot reach the Ray cluster at 127.0.0.1:1" in err and err.count("\n") == 1
+    assert _files(tmp_path) == before

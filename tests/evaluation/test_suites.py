@@ -167,3 +167,15 @@ def test_parallel_result_equals_serial(hopper_run, monkeypatch):
     (parallel,) = suites.run_suite(runs, "tiny", workers=2, **kwargs)
     assert len(serial) == 4 * 2
     pd.testing.assert_frame_equal(serial, parallel)
+
+
+def test_ray_backend_equals_serial(hopper_run, monkeypatch):
+    pytest.importorskip("ray")
+    from adarl.evaluation.runs import find_runs
+
+    runs = find_runs([hopper_run])
+    kwargs = dict(max_steps=20, progress=False, episodes=1)
+    (serial,) = suites.run_suite(runs, "m2td3-1d", workers=1, **kwargs)
+    (on_ray,) = suites.run_suite(runs, "m2td3-1d", workers=2, backend="ray", **kwargs)
+    assert len(serial) == 10 * 2
+    pd.testing.assert_frame_equal(serial, on_ray)
