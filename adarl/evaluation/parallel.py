@@ -62,12 +62,16 @@ def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
             _tick(bar)
         return results
     results: list = [None] * len(units)
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    try:
         futures = {pool.submit(run_unit, unit): i for i, unit in enumerate(units)}
         for future in as_completed(futures):
             results[futures[future]] = future.result()
             _tick(bar)
+    except BaseException:  # an error or Ctrl-C: drop the queued units rather than run them all
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
     return results
 
 
