@@ -177,10 +177,6 @@ def _paper_suites() -> dict[str, Suite]:
 SUITES: dict[str, dict[str, Suite]] = _literature_suites() | {"paper": _paper_suites()}
 
 
-def suite_names() -> list[str]:
-    return list(SUITES)
-
-
 def get_suite(name: str, task: str) -> Suite:
     """The suite `name` for `task`; a one-line `UsageError` naming the value and what is allowed
     when the name is unknown or the suite has no set for the task."""
