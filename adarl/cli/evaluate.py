@@ -4,6 +4,7 @@ nominal, fixed or swept dynamics, and store them as `RUN_DIR/evaluations/<name>.
     adarl evaluate runs/hopper-adarl                                  # nominal, 10 episodes
     adarl evaluate runs/hopper-adarl --sweep torso_length=0.2:0.6:9 --hold foot_length=0.39
     adarl evaluate sweep-out/ --dynamics fixed:torso_length=0.5 --episodes 20
+    adarl evaluate runs/ --suite m2td3-3d                             # a named robustness suite
 
 See docs/evaluation.md.
 """
@@ -38,7 +39,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--hold", action="append", default=[], metavar="P=V", help="hold parameter P at V"
     )
-    parser.add_argument("--episodes", type=int, default=10, help="episodes per seed and point")
+    parser.add_argument(
+        "--suite", default=None, metavar="NAME",
+        help="a named robustness suite (m2td3-1d/2d/3d, rrls-1d/2d/3d, paper; docs/evaluation.md): "
+        "its grid, base dynamics and episodes; reports worst-case and average return",
+    )  # fmt: skip
+    parser.add_argument(
+        "--episodes", type=int, default=None,
+        help="episodes per seed and point (default 10, or the suite's)",
+    )  # fmt: skip
     parser.add_argument(
         "--checkpoint",
         type=int,
@@ -49,6 +58,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--workers", type=int, default=None, help="worker processes (default: all cores)"
     )
+    parser.add_argument(
+        "--backend", choices=("local", "ray"), default="local",
+        help="--suite only: local process pool (default) or Ray",
+    )  # fmt: skip
+    parser.add_argument(
+        "--address", default=None, metavar="HOST:PORT", help="--backend ray: a Ray cluster"
+    )
+    parser.add_argument("--no-progress", action="store_true", help="--suite: no progress bar")
     parser.add_argument(
         "--out", default=None, metavar="CSV",
         help="output CSV (one run only; default RUN_DIR/evaluations/<name>.csv)",
@@ -67,13 +84,16 @@ def command_line(args: argparse.Namespace) -> str:
     from adarl.evaluation.evaluate import EVAL_SEED
 
     parts = ["adarl", "evaluate", *args.run_dirs]
+    if args.suite is not None:
+        parts += ["--suite", args.suite]
     if args.dynamics != "nominal":
         parts += ["--dynamics", args.dynamics]
     for s in args.sweep:
         parts += ["--sweep", s]
     for h in args.hold:
         parts += ["--hold", h]
-    parts += ["--episodes", str(args.episodes)]
+    if args.episodes is not None or args.suite is None:
+        parts += ["--episodes", str(10 if args.episodes is None else args.episodes)]
     if args.checkpoint is not None:
         parts += ["--checkpoint", str(args.checkpoint)]
     if args.eval_seed != EVAL_SEED:
@@ -96,6 +116,12 @@ def run(args: argparse.Namespace) -> int:
     from adarl.evaluation.runs import find_runs
     from adarl.train.io import check_writable_file
 
+    if args.suite is not None:
+        return run_suite_command(args)
+    if args.backend != "local" or args.address:
+        raise UsageError("--backend and --address apply to --suite evaluations; add --suite NAME")
+    if args.episodes is None:
+        args.episodes = 10
     spec = EvalSpec.from_options(
         args.dynamics,
         args.sweep,
@@ -122,4 +148,63 @@ def run(args: argparse.Namespace) -> int:
         for row in summarise(table).itertuples():
             std = "" if row.seeds < 2 else f" ± {row.std:.1f}"
             print(f"  {row.dynamics}: {row.mean:.1f}{std} over {row.seeds} seed(s)")
+    return 0
+
+
+def run_suite_command(args: argparse.Namespace) -> int:
+    """`adarl evaluate RUN… --suite NAME`: check everything, evaluate the grid, write per run."""
+    import pandas as pd
+
+    from adarl.evaluation import suites
+    from adarl.evaluation.runs import find_runs
+    from adarl.train.io import check_writable_file
+
+    mixed = [
+        flag
+        for flag, given in (
+            ("--sweep", args.sweep),
+            ("--hold", args.hold),
+            ("--dynamics", args.dynamics != "nominal"),
+            ("--out", args.out),
+        )
+        if given
+    ]
+    if mixed:
+        raise UsageError(
+            f"--suite {args.suite} fixes the grid and the output; allowed: --suite without "
+            f"{', '.join(mixed)}"
+        )
+    if args.suite not in suites.SUITES:  # before looking at any run folder
+        suites.get_suite(args.suite, "")
+    if args.episodes is not None and args.episodes < 1:
+        raise UsageError(f"--episodes must be ≥ 1, got {args.episodes}")
+    if args.max_episode_steps is not None and args.max_episode_steps < 1:
+        raise UsageError(f"--max-episode-steps must be ≥ 1, got {args.max_episode_steps}")
+    runs = find_runs(args.run_dirs)
+    options = dict(
+        checkpoint=args.checkpoint, eval_seed=args.eval_seed, max_steps=args.max_episode_steps
+    )
+    suites.plan_suite(runs, args.suite, args.episodes, **options)  # every check, nothing run
+    stem = suites.file_name(args.suite, args.checkpoint)
+    for run_ in runs:
+        check_writable_file(run_.path / "evaluations" / f"{stem}.csv")
+        check_writable_file(run_.path / suites.SUITES_DIR / f"{stem.removeprefix('suite-')}.csv")
+    tables = suites.run_suite(
+        runs,
+        args.suite,
+        args.episodes,
+        workers=args.workers,
+        backend=args.backend,
+        address=args.address,
+        progress=not args.no_progress,
+        **options,
+    )
+    command = command_line(args)
+    for run_, table in zip(runs, tables):
+        _, summary_path = suites.write_suite(
+            table, run_, args.suite, args.episodes, command=command, **options
+        )
+        summary = pd.read_csv(summary_path)
+        print(f"{run_.path} ({run_.task}, {run_.label}): suite {args.suite} -> {summary_path}")
+        print(f"  {suites.format_summary(summary)}")
     return 0

@@ -40,6 +40,11 @@ def run(args) -> int:
         for name, default in task.params.items():
             p = PARAMS[name]
             print(f"    {name:<15} {default:<7g} {p.unit:<8} {p.meaning}; allowed: {p.allowed}")
+        if task.optional_params:
+            print("  optional parameters (set only when given; the robustness suites use them):")
+            for name, default in task.optional_params.items():
+                p = PARAMS[name]
+                print(f"    {name:<20} {default:<7.4g} {p.unit:<3} {p.meaning}")
         for kind, formulas in task.formulas.items():
             text = ", ".join(f"{p} = {f}" for p, f in formulas.items())
             print(f"  {kind + ':':<9} {text}")
@@ -114,6 +119,7 @@ def _as_dict(task) -> dict:
         "act_dim": task.act_dim,
         "intrinsic_rank": task.intrinsic_rank,
         "params": dict(task.params),
+        "optional_params": dict(task.optional_params),
         "formulas": task.formulas,
         "nominal": {p: s.center for p, s in task.schedules["paper"].items()},
         "uniform": {p: [s.low, s.high] for p, s in task.schedules["paper"].items()},

@@ -9,7 +9,9 @@ others are constants. Modes by name (see `parse_dynamics`):
   fixed     user values, e.g. fixed:torso_length=0.5,foot_length=0.39 (others at Gymnasium defaults)
   default   Gymnasium's own model, untouched (no recompile, no air for Ant/Humanoid)
 
-Any mode but `default` takes overrides after a colon: ``paper:mass_scale=1.2``.
+Any mode but `default` takes overrides after a colon: ``paper:mass_scale=1.2``. A task's optional
+parameters (`TaskSpec.optional_params`: body masses, floor friction) are part of a schedule only
+when it sets them.
 """
 
 from __future__ import annotations
@@ -56,6 +58,11 @@ class DynamicsSchedule:
                 f"parameter {sorted(both)[0]!r} is both constant and varying; allowed: one of the two"
             )
         for name, s in self.sinusoids.items():
+            if name in spec.optional_params:
+                raise UsageError(
+                    f"parameter {name!r} cannot vary; allowed: a constant value (optional "
+                    f"parameters of {spec.name}: {', '.join(spec.optional_params)})"
+                )
             if not isinstance(s, Sinusoid):
                 raise UsageError(f"bad varying value {s!r} for {name}; allowed: a Sinusoid")
             PARAMS[name].check(s.low), PARAMS[name].check(s.high)
@@ -64,6 +71,8 @@ class DynamicsSchedule:
             for p, default in spec.params.items()
             if p not in self.sinusoids
         }
+        optional = [p for p in spec.optional_params if p in self.constants]  # only those set
+        constants |= {p: PARAMS[p].check(self.constants[p]) for p in optional}
         if self.mode == "default" and (self.sinusoids or constants != dict(spec.params)):
             raise _default_takes_no_values("default")
         object.__setattr__(self, "task", spec.name)
@@ -71,7 +80,7 @@ class DynamicsSchedule:
         object.__setattr__(
             self, "sinusoids", {p: self.sinusoids[p] for p in spec.params if p in self.sinusoids}
         )
-        object.__setattr__(self, "_order", tuple(spec.params))
+        object.__setattr__(self, "_order", (*spec.params, *optional))
 
     @property
     def varies(self) -> bool:
@@ -136,7 +145,7 @@ class DynamicsSchedule:
         for name in values:
             _check_name(spec, name)
         values = {
-            k: check_plausible(k, PARAMS[k].check(v), spec.params[k]) for k, v in values.items()
+            k: check_plausible(k, PARAMS[k].check(v), spec.all_params[k]) for k, v in values.items()
         }
         suffix = ",".join(f"{k}={v!r}" for k, v in values.items())
         return DynamicsSchedule(
@@ -188,9 +197,9 @@ def _default_takes_no_values(what: str) -> UsageError:
 
 
 def _check_name(spec, name: str) -> None:
-    if name not in spec.params:
+    if name not in spec.all_params:
         raise UsageError(
-            f"unknown {spec.name} parameter {name!r}; allowed: {', '.join(spec.params)}"
+            f"unknown {spec.name} parameter {name!r}; allowed: {', '.join(spec.all_params)}"
         )
 
 
@@ -204,7 +213,7 @@ def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
         if not eq or not name or not value:
             raise UsageError(
                 f"malformed dynamics {text!r} (at {item.strip()!r}); allowed: "
-                f"{kind}:NAME=VALUE[,NAME=VALUE...] with NAME one of {', '.join(spec.params)}"
+                f"{kind}:NAME=VALUE[,NAME=VALUE...] with NAME one of {', '.join(spec.all_params)}"
             )
         _check_name(spec, name)
         if name in values:

@@ -15,6 +15,11 @@ Physics: gravity g -> opt.gravity = (0, 0, -g); wind W -> opt.wind = (-W, 0, 0);
 air (density 1.2, viscosity 2e-5); mass_scale multiplies every geom density (hence body masses and
 inertias); friction_scale every geom friction; damping_scale every joint damping; stiffness sets the
 task's stiffened joints' stiffness with the task's spring reference.
+Optional parameters (the M2TD3 / RRLS uncertainty sets, Tanabe et al. 2022; Zouitine et al. 2024):
+floor_friction sets the floor geom's sliding friction (after friction_scale); a body mass
+(torso_mass, thigh_mass, front_left_leg_mass, ...) is written into the compiled model's
+`body_mass`, its inertia kept, as both codes do (M2TD3 utils/make_env.py, RRLS rrls/envs/*.py).
+At its default an optional parameter leaves the model as the other parameters make it.
 
 `ompo` physics (`ModelEditor`) instead writes the same parameters into the compiled default model,
 as OMPO's `*_random.py` envs do: lengths only move `body_pos` and resize `geom_size`, so masses,
@@ -40,6 +45,16 @@ XML_FILES = {
     "ant": "ant.xml",
     "humanoid": "humanoid.xml",
 }
+#: The body each optional mass parameter sets (M2TD3's and RRLS's `body_mass[i]` by name).
+BODY_MASSES = {
+    "torso_mass": "torso",
+    "thigh_mass": "thigh",
+    "front_left_leg_mass": "front_left_leg",
+    "front_right_leg_mass": "front_right_leg",
+}
+#: The geom `floor_friction` sets (geom 0 in every task, RRLS's `geom_friction[0, 0]`).
+FLOOR_GEOM = "floor"
+
 #: The -v4 env classes' XML files: only Walker2d's differs (right foot friction 0.9, not 1.9).
 XML_FILES_V4 = XML_FILES | {"walker2d": "walker2d.xml"}
 
@@ -91,6 +106,7 @@ class ModelBuilder:
         previous, self._applied = self._applied, None  # unknown if anything below fails
         apply_params(self.spec, self.task, params, self._base, previous)
         model = self.spec.compile()
+        set_body_masses(model, self.task, params)
         self._applied = dict(params)
         return model
 
@@ -189,6 +205,9 @@ class ModelEditor:
         m.body_mass[:] = base["body_mass"] * params["mass_scale"]
         m.body_inertia[:] = base["body_inertia"] * params["mass_scale"]
         m.geom_friction[:] = base["geom_friction"] * params["friction_scale"]
+        floor = params.get("floor_friction", self.task.all_params.get("floor_friction"))
+        if floor is not None and floor != self.task.all_params["floor_friction"]:
+            m.geom_friction[m.geom(FLOOR_GEOM).id, 0] = floor
         m.dof_damping[:] = base["dof_damping"] * params["damping_scale"]
         m.dof_dampingpoly[:] = base["dof_dampingpoly"] * params["damping_scale"]
         k = params.get("stiffness", 0.0)
@@ -201,7 +220,16 @@ class ModelEditor:
         opt.gravity = gravity if "gravity" not in params else [0.0, 0.0, -params["gravity"]]
         opt.wind = wind if "wind" not in params else [0.0 - params["wind"], 0.0, 0.0]
         opt.density, opt.viscosity = self.task.medium or (density, viscosity)
+        set_body_masses(m, self.task, params)
         return m
+
+
+def set_body_masses(model: mujoco.MjModel, task: TaskSpec, params: dict[str, float]) -> None:
+    """Write each mass parameter of `params` that differs from its default into `body_mass`
+    (inertia kept, as M2TD3 and RRLS do)."""
+    for name, body in BODY_MASSES.items():
+        if name in params and params[name] != task.all_params[name]:
+            model.body_mass[model.body(body).id] = params[name]
 
 
 class _Snapshot:
@@ -210,6 +238,8 @@ class _Snapshot:
     def __init__(self, spec: mujoco.MjSpec, task: TaskSpec):
         self.geoms = [(g, g.density, g.mass, np.array(g.friction)) for g in spec.geoms]
         self.joints = [(j, np.array(j.damping)) for j in spec.joints]
+        floor = spec.geom(FLOOR_GEOM)
+        self.floor = None if floor is None else (floor, np.array(floor.friction))
         self.stiff = [
             (spec.joint(n), np.array(spec.joint(n).stiffness), spec.joint(n).springref)
             for n in task.stiffness_joints
@@ -236,7 +266,7 @@ _GROUPS = {
     "torso": ("torso_length",),
     "feet": ("foot_length",),
     "mass": ("mass_scale",),
-    "friction": ("friction_scale",),
+    "friction": ("friction_scale", "floor_friction"),
     "damping": ("damping_scale",),
     "stiffness": ("stiffness",),
     "option": ("gravity", "wind"),
@@ -255,8 +285,8 @@ def apply_params(
     defaults = task.params
 
     def changed(group: str) -> bool:
-        names = [n for n in _GROUPS[group] if n in defaults]
-        return previous is None or any(params[n] != previous[n] for n in names)
+        names = [n for n in _GROUPS[group] if n in task.all_params]
+        return previous is None or any(params.get(n) != previous.get(n) for n in names)
 
     if task.name in LAYOUTS:
         if changed("torso"):
@@ -272,6 +302,10 @@ def apply_params(
     if changed("friction"):
         for geom, _, _, friction in base.geoms:
             geom.friction = friction * params["friction_scale"]
+        floor = params.get("floor_friction", task.all_params.get("floor_friction"))
+        if floor is not None and floor != task.all_params["floor_friction"]:
+            geom, friction = base.floor
+            geom.friction = np.concatenate([[floor], friction[1:] * params["friction_scale"]])
     if changed("damping"):
         for joint, damping in base.joints:
             joint.damping = damping * params["damping_scale"]

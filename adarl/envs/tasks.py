@@ -28,6 +28,10 @@ VERSIONS = ("v5", "v4")
 #: compiled default model as OMPO does.
 PHYSICS = ("consistent", "ompo")
 
+#: Gymnasium's torso and thigh masses (kg) of Hopper and Walker2d (v4 and v5 alike), the defaults
+#: of their optional mass parameters (tests check them against the compiled models).
+LEGGED_OPTIONAL = {"torso_mass": 3.6651914291880923, "thigh_mass": 4.057890510886818}
+
 #: Air, as OMPO sets it for Ant and Humanoid so that MuJoCo's wind acts: (density kg/m^3, viscosity Pa s).
 AIR = (1.2, 2e-5)
 
@@ -47,11 +51,19 @@ class TaskSpec:
     spring_ref: float = 0.0  # rad; the spring reference of `stiffness_joints`
     version: str = "v5"  # Gymnasium model version of `gym_id` and `obs_dim`
     v4_obs_dim: int = 0  # observation size of the task's -v4 env
+    #: Parameters a schedule may set but need not: left out of `params` (so of `info["dynamics"]`
+    #: and the training logs) unless set; at their default they leave the model untouched.
+    optional_params: dict[str, float] = field(default_factory=dict)
     intrinsic_rank: int = field(init=False)
 
     def __post_init__(self):
         # Tiwari et al. 2025: reachable states lie on a manifold of dimension <= 2·d_a + 1.
         object.__setattr__(self, "intrinsic_rank", 2 * self.act_dim + 1)
+
+    @property
+    def all_params(self) -> dict[str, float]:
+        """`params` and `optional_params`: every parameter name a schedule accepts, with its default."""
+        return self.params | self.optional_params
 
     @property
     def varied(self) -> tuple[str, ...]:
@@ -71,7 +83,7 @@ def _task(name, gym_id, obs_dim, act_dim, varied_defaults, paper, ompo=None, **e
     params = dict(varied_defaults) | GENERIC_DEFAULTS
     if extra.get("stiffness_joints"):
         params["stiffness"] = 0.0
-    assert set(params) <= set(PARAMS), params
+    assert set(params) | set(extra.get("optional_params", {})) <= set(PARAMS), params
     return TaskSpec(
         name=name,
         gym_id=gym_id,
@@ -101,6 +113,7 @@ TASKS: dict[str, TaskSpec] = {
             stiffness_joints=("leg_joint", "foot_joint"),
             spring_ref=2.0,
             v4_obs_dim=11,
+            optional_params=LEGGED_OPTIONAL | {"floor_friction": 1.0},
         ),
         _task(
             "walker2d",
@@ -116,6 +129,7 @@ TASKS: dict[str, TaskSpec] = {
             stiffness_joints=("foot_joint", "foot_left_joint"),
             spring_ref=0.0,
             v4_obs_dim=17,
+            optional_params=LEGGED_OPTIONAL | {"floor_friction": 0.7},
         ),
         _task(
             "ant",
@@ -125,7 +139,12 @@ TASKS: dict[str, TaskSpec] = {
             {"gravity": 9.81, "wind": 0.0},
             paper={"gravity": Sinusoid(14.715, 4.905, 0.5), "wind": Sinusoid(1.0, 0.2, 0.5)},
             medium=AIR,
-            v4_obs_dim=27,  # Ant-v4 leaves contact forces out of the observation by default
+            v4_obs_dim=27,
+            optional_params={
+                "torso_mass": 0.32724923474893675,
+                "front_left_leg_mass": 0.03915775372846671,
+                "front_right_leg_mass": 0.03915775372846671,
+            },  # Ant-v4 leaves contact forces out of the observation by default
         ),
         _task(
             "humanoid",

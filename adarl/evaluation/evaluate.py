@@ -99,7 +99,7 @@ def task_parameters(task: str) -> list[str]:
         return []
     from adarl.envs import get_task
 
-    return list(get_task(task).params)
+    return list(get_task(task).all_params)
 
 
 def check_dynamics(spec: str, task: str) -> None:
@@ -231,9 +231,15 @@ def default_output(run: Run, spec: EvalSpec) -> Path:
 
 
 def write_evaluation(
-    table: pd.DataFrame, path: Path, spec: EvalSpec, run: Run, command: str | None = None
+    table: pd.DataFrame,
+    path: Path,
+    spec: EvalSpec,
+    run: Run,
+    command: str | None = None,
+    extra: dict | None = None,
 ) -> Path:
-    """Write the CSV and its JSON sidecar (same stem), each atomically, the sidecar last."""
+    """Write the CSV and its JSON sidecar (same stem), each atomically, the sidecar last;
+    `extra` adds (or replaces) sidecar entries."""
     path = Path(path)
     atomic_write_text(path, table.to_csv(index=False, float_format="%.6g"))
     meta = {
@@ -250,7 +256,7 @@ def write_evaluation(
         "max_episode_steps": spec.max_steps,
         "seeds": sorted(int(s) for s in table["seed"].unique()),
         "command": command,
-    }
+    } | dict(extra or {})
     atomic_write_json(path.with_suffix(".json"), meta)
     return path
 

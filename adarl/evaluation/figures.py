@@ -192,6 +192,41 @@ def robustness_curve(
 
 
 @styled
+def suite_heatmap(
+    x_values: np.ndarray,
+    y_values: np.ndarray,
+    returns: np.ndarray,
+    x: str,
+    y: str,
+    title: str = "",
+) -> Figure:
+    """Return over a two-parameter suite's grid (`returns`: shape (len(y), len(x)), the mean over
+    seeds of each seed's mean return at the point), the worst point circled."""
+    fig = Figure(figsize=(COLUMN_WIDTH, 2.8), layout="constrained")
+    ax = fig.add_subplot()
+    ax.grid(False)
+    mesh = ax.pcolormesh(_edges(x_values), _edges(y_values), returns, cmap="viridis")
+    fig.colorbar(mesh, ax=ax, label="return")
+    if np.isfinite(returns).any():
+        row, col = np.unravel_index(np.nanargmin(returns), returns.shape)
+        ax.plot(x_values[col], y_values[row], "o", mfc="none", mec="red", ms=7, label="worst")
+        ax.legend(loc="upper right")
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    ax.set_title(title)
+    return fig
+
+
+def _edges(centres: np.ndarray) -> np.ndarray:
+    """Cell edges around (sorted) centres: midpoints, and half a step beyond the ends."""
+    c = np.asarray(centres, float)
+    if len(c) == 1:
+        return np.array([c[0] - 0.5, c[0] + 0.5])
+    mid = (c[1:] + c[:-1]) / 2
+    return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
+
+
+@styled
 def bias_variance(
     fixed: pd.DataFrame,
     adarl_ranks: Sequence[float] | None = None,

@@ -199,6 +199,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     sections.append(training_section(main, folder, colours))
     sections.append(rank_section(runs, folder))
     sections.append(robustness_section(runs, folder, colours, notes))
+    sections.append(suites_section(runs, folder, options))
     sections.append(bias_variance_section(fixed, runs, finals, folder))
     sections.append(ablation_section(runs, folder))
     sections.append(spectra_section(runs, folder))
@@ -732,6 +733,8 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
                         nominal[(r.task, c[2:])] = float(ev.table[c].iloc[0])
                 continue
             if len(swept) > 1:
+                if ev.meta.get("suite"):
+                    continue  # the suites section reports it
                 notes.append(
                     f"{r.path}/evaluations/{ev.name}.csv sweeps {len(swept)} parameters; "
                     "only one-parameter sweeps are drawn."
@@ -766,6 +769,74 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
         "95% t band); grey dotted line: the nominal value.\n\n" + "\n".join(lines) + "\n"
     )
     return Section("Robustness", text, files)
+
+
+def suites_section(runs: list[Run], folder: Path, options: ReportOptions) -> Section:
+    """Worst-case and average return over each robustness suite's grid (`adarl evaluate
+    --suite`), mean over seeds with bootstrap intervals; a heatmap per two-parameter suite."""
+    from adarl.evaluation import suites
+
+    found: dict[tuple[str, str, str], list[tuple[pd.DataFrame, pd.DataFrame]]] = {}
+    for r in runs:
+        for ev in collect.evaluations(r):
+            name = ev.meta.get("suite")
+            if name and ev.meta.get("final_checkpoint", True):
+                summary = suites.seed_summary(ev.table, name)
+                found.setdefault((r.task, name, r.label), []).append((summary, ev.table))
+    title = "Robustness suites"
+    if not found:
+        return Section(
+            title,
+            "No suite evaluations found; run `adarl evaluate RUN --suite NAME` to add them.\n",
+        )
+    reps, conf = options.bootstrap_reps, options.confidence
+    order = sort_tasks(k[0] for k in found)
+    methods = sort_methods(k[2] for k in found)
+    keys = sorted(found, key=lambda k: (order.index(k[0]), k[1], methods.index(k[2])))
+    rows, files = [], []
+    for task, name, method in keys:
+        summary = pd.concat([s for s, _ in found[(task, name, method)]], ignore_index=True)
+        estimate = suites.aggregate(summary, reps, conf, options.seed)
+        rows.append(
+            {
+                "task": task,
+                "suite": name,
+                "method": method,
+                "seeds": len(summary),
+                "points": int(summary["points"].max()),
+                "episodes": int(summary["episodes"].min()),
+                **{f"{k}_{part}": v for k, e in estimate.items() for part, v in zip(("mean", "low", "high"), e)},
+            }
+        )  # fmt: skip
+        suite = suites.get_suite(name, task)
+        if len(suite.ranges) == 2:
+            table = pd.concat([t for _, t in found[(task, name, method)]], ignore_index=True)
+            x, y = suite.ranges[1].param, suite.ranges[0].param
+            fig = figures.suite_heatmap(
+                *suites.heatmap_grid(table, x, y), x, y, f"{task}, {name}: {method}"
+            )
+            files += _figure(folder, fig, f"suite_{task}_{name}_{method}")
+    df = pd.DataFrame(rows)
+    files.insert(0, _write(folder, "tables/suites.csv", _csv(df)))
+    md = tables.markdown_table(
+        ["task", "suite", "method", "seeds", "points × episodes", "worst-case", f"{conf:.0%} CI",
+         "average", f"{conf:.0%} CI"],
+        [
+            [row.task, row.suite, row.method, row.seeds, f"{row.points} × {row.episodes}",
+             *_interval(row.worst_mean, row.worst_low, row.worst_high, 1),
+             *_interval(row.average_mean, row.average_low, row.average_high, 1)]
+            for row in df.itertuples()
+        ],
+    )  # fmt: skip
+    files.insert(1, _write(folder, "tables/suites.md", md))
+    text = (
+        "Per seed, the worst-case return is the lowest and the average return the mean, over "
+        "the suite's grid points, of the mean return over each point's episodes (as M2TD3 and "
+        "RRLS report them; suites and sources: docs/evaluation.md). Shown: the mean over seeds "
+        f"with a {conf:.0%} percentile bootstrap interval over seeds ({reps} resamples). "
+        "Heatmaps: two-parameter suites, mean over seeds, the worst point circled.\n\n"
+    )
+    return Section(title, text + md, files)
 
 
 def _swept_values(table: pd.DataFrame, param: str) -> np.ndarray:

@@ -1,0 +1,117 @@
+"""Running evaluation units (one seed's policy at one grid point, `adarl.evaluation.evaluate.Unit`)
+in parallel, with a progress bar: over a pool of local processes, or over Ray.
+
+Local workers are started with `spawn`: a forked child of a process that has loaded JAX (a test
+run, a notebook) can deadlock on JAX's threads, and a spawned one costs only its imports (no JAX:
+policies are NumPy files). Results come back in the order of the units whatever the backend and
+the number of workers, so the files written do not depend on them.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import sys
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+
+from adarl.errors import UsageError, check_choice
+
+BACKENDS = ("local", "ray")
+
+
+def run_units(
+    units: Sequence,
+    workers: int | None = None,
+    backend: str = "local",
+    address: str | None = None,
+    progress: bool = True,
+    desc: str = "evaluate",
+) -> list[list[dict]]:
+    """Each unit's episode rows (`evaluate.run_unit`), in the order of `units`.
+
+    `backend`: `local` (a `spawn` process pool of `workers`, default all cores; one worker runs
+    in this process) or `ray` (one Ray task per unit, on a local Ray instance of `workers` CPUs
+    or on the cluster at `address`)."""
+    check_choice("backend", backend, BACKENDS)
+    from adarl.evaluation.evaluate import default_workers
+
+    workers = default_workers() if workers is None else workers
+    if workers < 1:
+        raise UsageError(f"--workers must be ≥ 1, got {workers}")
+    if address and backend != "ray":
+        raise UsageError(
+            "--address is for --backend ray; allowed: --backend ray --address HOST:PORT"
+        )
+    bar = _progress(len(units), desc, progress)
+    try:
+        if backend == "ray":
+            return _run_ray(units, workers, address, bar)
+        return _run_local(units, min(workers, max(len(units), 1)), bar)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
+    from adarl.evaluation.evaluate import run_unit
+
+    if workers <= 1:
+        results = []
+        for unit in units:
+            results.append(run_unit(unit))
+            _tick(bar)
+        return results
+    results: list = [None] * len(units)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    try:
+        futures = {pool.submit(run_unit, unit): i for i, unit in enumerate(units)}
+        for future in as_completed(futures):
+            results[futures[future]] = future.result()
+            _tick(bar)
+    except BaseException:  # an error or Ctrl-C: drop the queued units rather than run them all
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    return results
+
+
+def _run_ray(units: Sequence, workers: int, address: str | None, bar) -> list[list[dict]]:
+    from adarl.evaluation.evaluate import run_unit
+    from adarl.sweeps.backends import check_reachable, import_ray
+
+    ray = import_ray()
+    if address:
+        check_reachable(address)
+    try:
+        if address:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+    except (ConnectionError, OSError, RuntimeError, ValueError) as exc:
+        ray.shutdown()
+        where = f"the Ray cluster at {address}" if address else "a local Ray instance"
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UsageError(f"cannot start or reach {where}: {first}") from None
+    try:
+        remote = ray.remote(num_cpus=1)(run_unit)
+        refs = [remote.remote(unit) for unit in units]
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            _tick(bar, len(done))
+        return ray.get(refs)
+    finally:
+        ray.shutdown()
+
+
+def _progress(total: int, desc: str, enabled: bool):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="unit", dynamic_ncols=True, file=sys.stderr)
+
+
+def _tick(bar, n: int = 1) -> None:
+    if bar is not None:
+        bar.update(n)

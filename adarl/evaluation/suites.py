@@ -1,0 +1,350 @@
+"""Named robustness test sets: the literature's uncertainty sets evaluated on their grids.
+
+    adarl evaluate runs/ --suite m2td3-3d        # 10 x 10 x 10 grid, 30 episodes per point
+
+A suite fixes, per task, the parameters to vary, their ranges, how the grid is spaced, the base
+dynamics the other parameters keep and the episodes per point. Its result per seed is the
+**worst-case return** (the lowest, over grid points, of the mean return over the point's
+episodes) and the **average return** (the mean over grid points), the two numbers M2TD3 and RRLS
+publish. Sources, per suite (docs/evaluation.md has the ranges next to their files):
+
+* `m2td3-1d`, `m2td3-2d`, `m2td3-3d`: Tanabe et al. 2022, "Max-Min Off-Policy Actor-Critic Method
+  Focusing on Worst-Case Robustness to Model Misspecification" (NeurIPS), code akimotolab/M2TD3:
+  ranges from configs/environment/{Hopperv2-1_3, Hopperv2-2_3_3, Hopperv2-3_3_3_4, Walker2dv2-*,
+  Antv2-*}.yaml, grid `np.linspace(min, max, 10)` per dimension and 30 episodes per point
+  (evaluate.py, `--num_evaluate_point 10`, `--evaluate_num 30`), on Gymnasium's robot.
+* `rrls-1d`, `rrls-2d`, `rrls-3d`: Zouitine et al. 2024, "RRLS: Robust Reinforcement Learning
+  Suite", code SuReLI/RRLS: the same ranges (rrls/envs/{hopper,walker,ant}.py `*ParamsBound`),
+  grid `np.arange(min, max, (max - min) / 10)` (rrls/evaluate.py): 10 points, the upper bound left
+  out. RRLS fixes no episode count; we keep M2TD3's 30.
+* `paper`: the AdaRL paper's training ranges (c ∓ |a| of each schedule formula, adarl.envs.tasks):
+  Hopper/Walker2d torso x foot length, Ant/Humanoid gravity x wind, 10 points per dimension
+  (linspace), 10 episodes per point, other parameters at the nominal point.
+
+Pure functions here (definitions, grids, summaries); `run_suite` and `write_suite` do the work
+and the I/O.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from adarl.errors import UsageError
+from adarl.evaluation import grid
+
+#: Where a suite's per-seed summary goes in a run folder: RUN_DIR/suites/<name>.csv.
+SUITES_DIR = "suites"
+SUMMARY_COLUMNS = ["suite", "step", "seed", "points", "episodes", "worst", "average", "worst_point"]
+SPACINGS = ("linspace", "arange")
+
+
+@dataclass(frozen=True)
+class Range:
+    """One varied parameter and the closed interval it is drawn from."""
+
+    param: str
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class Suite:
+    """One task's uncertainty set and how it is evaluated."""
+
+    name: str
+    task: str
+    ranges: tuple[Range, ...]
+    source: str
+    points: int = 10  # per dimension
+    spacing: str = "linspace"  # linspace: both ends (M2TD3); arange: upper end left out (RRLS)
+    base: str = "fixed"  # dynamics of the parameters not varied: fixed = Gymnasium's robot
+    episodes: int = 30
+
+    def axes(self) -> tuple[grid.Axis, ...]:
+        """The grid's axes, in the order of `ranges` (the last one varies fastest)."""
+        return tuple(
+            grid.Axis(r.param, grid_values(r.low, r.high, self.points, self.spacing), r.param)
+            for r in self.ranges
+        )
+
+    @property
+    def size(self) -> int:
+        return self.points ** len(self.ranges)
+
+
+def grid_values(low: float, high: float, points: int, spacing: str) -> tuple[float, ...]:
+    """`points` values from `low` to `high`: `np.linspace` (both ends, M2TD3's evaluate.py) or
+    `low + k (high - low) / points`, k < points (RRLS's `np.arange(low, high, step)` without its
+    floating-point risk of an extra point)."""
+    if spacing == "linspace":
+        values = np.linspace(low, high, points)
+    elif spacing == "arange":
+        values = low + (high - low) * np.arange(points) / points
+    else:
+        raise UsageError(f"unknown grid spacing {spacing!r}; allowed: {', '.join(SPACINGS)}")
+    return tuple(float(f"{v:.12g}") for v in values)
+
+
+# ----------------------------------------------------------------------------- definitions
+_M2TD3 = "Tanabe et al. 2022 (M2TD3), akimotolab/M2TD3 configs/environment/{file}.yaml"
+_RRLS = "Zouitine et al. 2024 (RRLS), SuReLI/RRLS rrls/envs/{file}.py {bound}"
+
+#: (M2TD3 config file, RRLS file, ranges) per task and dimension; RRLS's bounds equal M2TD3's.
+_LITERATURE = {
+    "hopper": [
+        ("Hopperv2-1_3", "hopper", [Range("floor_friction", 0.1, 3.0)]),
+        ("Hopperv2-2_3_3", "hopper", [Range("floor_friction", 0.1, 3.0), Range("torso_mass", 0.1, 3.0)]),
+        (
+            "Hopperv2-3_3_3_4",
+            "hopper",
+            [
+                Range("floor_friction", 0.1, 3.0),
+                Range("torso_mass", 0.1, 3.0),
+                Range("thigh_mass", 0.1, 4.0),
+            ],
+        ),
+    ],
+    "walker2d": [
+        ("Walker2dv2-1_4", "walker", [Range("floor_friction", 0.1, 4.0)]),
+        ("Walker2dv2-2_4_5", "walker", [Range("floor_friction", 0.1, 4.0), Range("torso_mass", 0.1, 5.0)]),
+        (
+            "Walker2dv2-3_4_5_6",
+            "walker",
+            [
+                Range("floor_friction", 0.1, 4.0),
+                Range("torso_mass", 0.1, 5.0),
+                Range("thigh_mass", 0.1, 6.0),
+            ],
+        ),
+    ],
+    "ant": [
+        ("Antv2-1_3", "ant", [Range("torso_mass", 0.1, 3.0)]),
+        ("Antv2-2_3_3", "ant", [Range("torso_mass", 0.1, 3.0), Range("front_left_leg_mass", 0.01, 3.0)]),
+        (
+            "Antv2-3_3_3_3",
+            "ant",
+            [
+                Range("torso_mass", 0.1, 3.0),
+                Range("front_left_leg_mass", 0.01, 3.0),
+                Range("front_right_leg_mass", 0.01, 3.0),
+            ],
+        ),
+    ],
+}  # fmt: skip
+_BOUNDS = ("ONE_DIM", "TWO_DIM", "THREE_DIM")
+
+
+def _literature_suites() -> dict[str, dict[str, Suite]]:
+    suites: dict[str, dict[str, Suite]] = {}
+    for task, sets in _LITERATURE.items():
+        for dim, (config, rrls_file, ranges) in enumerate(sets, start=1):
+            m2td3 = Suite(f"m2td3-{dim}d", task, tuple(ranges), _M2TD3.format(file=config))
+            bound = f"{rrls_file.capitalize()}ParamsBound.{_BOUNDS[dim - 1]}"
+            rrls = replace(
+                m2td3,
+                name=f"rrls-{dim}d",
+                spacing="arange",
+                source=_RRLS.format(file=rrls_file, bound=bound),
+            )
+            for suite in (m2td3, rrls):
+                suites.setdefault(suite.name, {})[task] = suite
+    return dict(sorted(suites.items()))  # m2td3-1d, m2td3-2d, …, rrls-3d
+
+
+def _paper_suites() -> dict[str, Suite]:
+    from adarl.envs.tasks import TASKS
+
+    return {
+        name: Suite(
+            "paper",
+            name,
+            tuple(Range(p, s.low, s.high) for p, s in spec.schedules["paper"].items()),
+            "AdaRL appendix, 'Model Uncertainty Setting': c ∓ |a| of each schedule "
+            "(adarl/envs/tasks.py)",
+            base="nominal",
+            episodes=10,
+        )
+        for name, spec in TASKS.items()
+    }
+
+
+#: Suite name -> task -> `Suite`.
+SUITES: dict[str, dict[str, Suite]] = _literature_suites() | {"paper": _paper_suites()}
+
+
+def get_suite(name: str, task: str) -> Suite:
+    """The suite `name` for `task`; a one-line `UsageError` naming the value and what is allowed
+    when the name is unknown or the suite has no set for the task."""
+    if name not in SUITES:
+        raise UsageError(f"unknown suite {name!r}; allowed: {', '.join(SUITES)}")
+    if task not in SUITES[name]:
+        allowed = [n for n, by_task in SUITES.items() if task in by_task]
+        raise UsageError(
+            f"suite {name!r} does not apply to task {task!r} (it covers "
+            f"{', '.join(SUITES[name])}); allowed for {task}: {', '.join(allowed) or 'none'}"
+        )
+    return SUITES[name][task]
+
+
+def file_name(suite: str, checkpoint: int | None = None) -> str:
+    """Stem of a suite's files in a run folder: `suite-m2td3-3d` (`…_step-N` for a checkpoint)."""
+    return f"suite-{suite}" + ("" if checkpoint is None else f"_step-{checkpoint}")
+
+
+# ----------------------------------------------------------------------------- summaries
+def point_means(table: pd.DataFrame) -> pd.DataFrame:
+    """Mean return over each point's episodes, per seed: columns `step, seed, dynamics, return`
+    plus the point's `p_*` values, one row per seed and grid point (in the table's order)."""
+    params = [c for c in table.columns if c.startswith("p_")]
+    keys = ["step", "seed", "dynamics", *params]
+    return table.groupby(keys, sort=False, as_index=False)["return"].mean()
+
+
+def seed_summary(table: pd.DataFrame, suite: str) -> pd.DataFrame:
+    """Per seed: the worst-case return (the lowest point mean) and the average return (the mean
+    of the point means) over the grid, as M2TD3 and RRLS report them, with the worst point."""
+    means = point_means(table)
+    episodes = table.groupby(["seed", "dynamics"], sort=False).size()
+    rows = []
+    for (step, seed), group in means.groupby(["step", "seed"], sort=True):
+        worst = group.loc[group["return"].idxmin()]
+        rows.append(
+            {
+                "suite": suite,
+                "step": int(step),
+                "seed": int(seed),
+                "points": len(group),
+                "episodes": int(episodes.loc[seed].min()),
+                "worst": float(worst["return"]),
+                "average": float(group["return"].mean()),
+                "worst_point": worst["dynamics"],
+            }
+        )
+    return pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
+
+
+def aggregate(
+    summaries: pd.DataFrame, reps: int = 10_000, confidence: float = 0.95, seed: int = 0
+) -> dict[str, tuple[float, float, float]]:
+    """Mean over seeds of the worst-case and of the average return, each with a percentile
+    bootstrap interval over seeds (`adarl.evaluation.stats.bootstrap_ci`):
+    {"worst": (point, low, high), "average": (...)}."""
+    from adarl.evaluation import stats
+
+    out = {}
+    for column in ("worst", "average"):
+        values = summaries[column].to_numpy(float).reshape(-1, 1)
+        ci = stats.bootstrap_ci(values, stats.mean, reps=reps, confidence=confidence, seed=seed)
+        out[column] = (ci.point, ci.low, ci.high)
+    return out
+
+
+def heatmap_grid(table: pd.DataFrame, x: str, y: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x values, y values, mean return over seeds of each seed's point mean, shape (ny, nx))
+    of a two-parameter suite's table."""
+    means = point_means(table)
+    cells = means.groupby([f"p_{y}", f"p_{x}"])["return"].mean().unstack()
+    return cells.columns.to_numpy(float), cells.index.to_numpy(float), cells.to_numpy(float)
+
+
+# ----------------------------------------------------------------------------- running
+def suite_spec(suite: Suite, episodes: int | None = None, **kwargs):
+    """The `EvalSpec` of a suite (its grid as swept axes over its base dynamics)."""
+    from adarl.evaluation.evaluate import EvalSpec
+
+    return EvalSpec(
+        dynamics=suite.base,
+        axes=suite.axes(),
+        episodes=suite.episodes if episodes is None else episodes,
+        **kwargs,
+    )
+
+
+def plan_suite(runs: Sequence, name: str, episodes: int | None = None, **kwargs) -> list:
+    """Every unit of work (one seed at one grid point) of suite `name` for `runs`, all checked
+    before any episode runs: unknown suite, a run whose task the suite does not cover, bad
+    checkpoints (one-line `UsageError`s)."""
+    from adarl.evaluation.evaluate import plan
+
+    suites = [get_suite(name, run.task) for run in runs]  # every run checked first
+    units = []
+    for index, (run, suite) in enumerate(zip(runs, suites)):
+        spec = suite_spec(suite, episodes, **kwargs)
+        units += [replace(u, run_index=index) for u in plan([run], spec)]
+    return units
+
+
+def run_suite(
+    runs: Sequence,
+    name: str,
+    episodes: int | None = None,
+    workers: int | None = None,
+    backend: str = "local",
+    address: str | None = None,
+    progress: bool = True,
+    **kwargs,
+) -> list[pd.DataFrame]:
+    """Evaluate every seed of every run on suite `name`; one episode table per run."""
+    from adarl.evaluation.evaluate import _table
+    from adarl.evaluation.parallel import run_units
+
+    units = plan_suite(runs, name, episodes, **kwargs)
+    results = run_units(units, workers, backend, address, progress, desc=f"suite {name}")
+    per_run: list[list[dict]] = [[] for _ in runs]
+    for unit, rows in zip(units, results):
+        per_run[unit.run_index].extend(rows)
+    return [_table(rows) for rows in per_run]
+
+
+def write_suite(
+    table: pd.DataFrame,
+    run,
+    name: str,
+    episodes: int | None = None,
+    checkpoint: int | None = None,
+    command: str | None = None,
+    **kwargs,
+) -> tuple[Path, Path]:
+    """Store a run's suite result: the episode table as an evaluation
+    (`RUN_DIR/evaluations/suite-<name>.{csv,json}`, the sidecar naming the suite) and the
+    per-seed summary `RUN_DIR/suites/<name>.csv`. Returns both CSV paths."""
+    from adarl.evaluation.evaluate import EVALUATIONS_DIR, write_evaluation
+    from adarl.train.io import atomic_write_text
+
+    suite = get_suite(name, run.task)
+    stem = file_name(name, checkpoint)
+    spec = suite_spec(suite, episodes, checkpoint=checkpoint, **kwargs)
+    extra = {
+        "name": stem,
+        "suite": name,
+        "suite_source": suite.source,
+        "suite_ranges": {r.param: [r.low, r.high] for r in suite.ranges},
+        "suite_spacing": suite.spacing,
+    }
+    episodes_path = run.path / EVALUATIONS_DIR / f"{stem}.csv"
+    write_evaluation(table, episodes_path, spec, run, command, extra=extra)
+    summary_path = run.path / SUITES_DIR / f"{stem.removeprefix('suite-')}.csv"
+    summary = seed_summary(table, name)
+    atomic_write_text(summary_path, summary.to_csv(index=False, float_format="%.6g"))
+    return episodes_path, summary_path
+
+
+def format_summary(summary: pd.DataFrame) -> str:
+    """One line: worst-case and average return, mean ± std over seeds."""
+
+    def text(column: str) -> str:
+        values = summary[column].to_numpy(float)
+        std = "" if len(values) < 2 else f" ± {np.std(values, ddof=1):.1f}"
+        return f"{values.mean():.1f}{std}"
+
+    seeds = len(summary)
+    points = int(summary["points"].iloc[0]) if seeds else 0
+    return (
+        f"worst-case {text('worst')}, average {text('average')} over {points} points "
+        f"and {seeds} seed(s)"
+    )

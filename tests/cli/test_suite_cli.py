@@ -1,0 +1,94 @@
+"""`adarl evaluate --suite`: end to end on tiny runs (files, report), and bad input (exit 2,
+nothing written)."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from adarl.cli.main import main
+from adarl.evaluation import suites
+from adarl.evaluation.synthetic import write_run
+
+pytest.importorskip("mujoco")
+
+FAST = ["--episodes", "1", "--max-episode-steps", "10", "--no-progress"]
+
+
+@pytest.fixture
+def tiny_suite(monkeypatch):
+    """m2td3-2d's parameters on a 2 x 2 grid, so that the test stays fast."""
+    full = suites.get_suite("m2td3-2d", "hopper")
+    small = suites.Suite("tiny-2d", "hopper", full.ranges, "test", points=2, episodes=2)
+    monkeypatch.setitem(suites.SUITES, "tiny-2d", {"hopper": small})
+    return small
+
+
+def test_suite_is_written_and_reported(tmp_path, capsys, tiny_suite):
+    runs = tmp_path / "runs"
+    sac = write_run(runs, "sac", algo="sac", seeds=(0, 1), quality=0.8)
+    adarl = write_run(runs, "adarl", algo="adarl", seeds=(0, 1))
+    argv = ["evaluate", str(runs), "--suite", "tiny-2d", "--workers", "1", *FAST]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "suite tiny-2d" in out and "worst-case" in out and "over 4 points and 2 seed(s)" in out
+    for run in (sac, adarl):
+        summary = pd.read_csv(run / "suites" / "tiny-2d.csv")
+        assert list(summary.columns) == suites.SUMMARY_COLUMNS
+        assert list(summary["seed"]) == [0, 1] and set(summary["points"]) == {4}
+        table = pd.read_csv(run / "evaluations" / "suite-tiny-2d.csv")
+        assert len(table) == 4 * 2 * 1  # points x seeds x episodes (--episodes 1)
+        means = table.groupby(["seed", "dynamics"])["return"].mean().groupby("seed")
+        assert list(summary["worst"]) == pytest.approx(list(means.min()), rel=1e-5)
+        assert list(summary["average"]) == pytest.approx(list(means.mean()), rel=1e-5)
+        meta = json.loads((run / "evaluations" / "suite-tiny-2d.json").read_text())
+        assert meta["suite"] == "tiny-2d" and meta["name"] == "suite-tiny-2d"
+        assert meta["command"].startswith(f"adarl evaluate {runs} --suite tiny-2d")
+    report = tmp_path / "report"
+    assert main(["report", str(runs), "--out", str(report), "--bootstrap-reps", "100"]) == 0
+    text = (report / "index.md").read_text()
+    assert "## Robustness suites" in text and "| hopper | tiny-2d | adarl | 2 | 4 × 1 |" in text
+    rows = pd.read_csv(report / "tables" / "suites.csv")
+    assert sorted(rows["method"]) == ["adarl", "sac"]
+    assert (report / "figures" / "suite_hopper_tiny-2d_adarl.png").is_file()
+
+
+def _files(root):
+    return sorted(p.relative_to(root) for p in root.rglob("*") if p.is_file())
+
+
+@pytest.mark.parametrize(
+    "make_runs, extra, fragment",
+    [
+        (["hopper"], ["--suite", "m2td3-9d"], "unknown suite 'm2td3-9d'; allowed: m2td3-1d"),
+        (
+            ["hopper", "humanoid"],
+            ["--suite", "m2td3-1d"],
+            "suite 'm2td3-1d' does not apply to task 'humanoid'",
+        ),
+        (["hopper"], ["--suite", "paper", "--sweep", "mass_scale=1:2:2"], "without --sweep"),
+        (["hopper"], ["--backend", "ray"], "apply to --suite evaluations"),
+        (["hopper"], ["--suite", "paper", "--episodes", "0"], "--episodes must be ≥ 1"),
+    ],
+)
+def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, make_runs, extra, fragment):
+    for task in make_runs:
+        write_run(tmp_path, task, task=task, seeds=(0,))
+    before = _files(tmp_path)
+    assert main(["evaluate", str(tmp_path), *FAST, *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("adarl evaluate: error:") and err.count("\n") == 1 and fragment in err, (
+        err
+    )
+    assert _files(tmp_path) == before
+
+
+def test_a_ray_address_that_does_not_answer(tmp_path, capsys, tiny_suite):
+    pytest.importorskip("ray")
+    write_run(tmp_path, "hopper", seeds=(0,))
+    before = _files(tmp_path)
+    argv = ["evaluate", str(tmp_path), *FAST, "--suite", "tiny-2d", "--backend", "ray"]
+    assert main([*argv, "--address", "127.0.0.1:1"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot reach the Ray cluster at 127.0.0.1:1" in err and err.count("\n") == 1
+    assert _files(tmp_path) == before
