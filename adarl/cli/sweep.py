@@ -118,8 +118,10 @@ def run(args: argparse.Namespace) -> int:
             else f"{args.workers or default_workers(sweep.cpus_per_unit)} local workers"
         )
         print(runner.plan_text(sweep, out, where))
+        print(_estimate_line(sweep, out, args, None))
         return 0
     backend = make_backend(args.backend, args.address, args.workers, sweep.cpus_per_unit)
+    print(_estimate_line(sweep, out, args, backend.slots), flush=True)
     options = runner.Options(
         max_retries=args.max_retries,
         progress_every=args.progress_every,
@@ -132,3 +134,23 @@ def run(args: argparse.Namespace) -> int:
         raise
     backend.close()
     return code
+
+
+def _estimate_line(sweep, out: Path, args: argparse.Namespace, slots: int | None) -> str:
+    """The estimated wall time, for the backend's slots (`None`: a dry run, which starts none)."""
+    from adarl.sweeps import estimate
+    from adarl.sweeps.backends import default_workers
+
+    cores = default_workers(1)
+    cluster = args.backend == "ray" and args.address
+    if slots is None:
+        slots = args.workers or default_workers(sweep.cpus_per_unit)
+    where = "on this machine"
+    if cluster:
+        where = (
+            "if run on this machine (a cluster's CPUs are known once it is joined)"
+            if args.dry_run
+            else "on the cluster, if its CPUs are as fast as this machine's"
+        )
+    found = estimate.for_sweep(sweep, out, slots, None if cluster and not args.dry_run else cores)
+    return estimate.describe(found, where)

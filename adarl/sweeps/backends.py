@@ -110,6 +110,7 @@ class LocalBackend:
 
     def __init__(self, workers: int):
         self.workers = workers
+        self.slots = workers  # units at once
         self.where = f"{workers} local worker{'s' * (workers != 1)}"
         self._pool = cf.ThreadPoolExecutor(max_workers=workers, thread_name_prefix="unit")
 
@@ -146,6 +147,7 @@ class RayBackend:
         self._remote = ray.remote(num_cpus=cpus_per_unit, max_retries=0)(run_job)
         self._refs: dict[cf.Future, object] = {}
         cpus = int(ray.cluster_resources().get("CPU", 0))
+        self.slots = max(1, cpus // cpus_per_unit)  # units at once
         self.where = (
             f"Ray cluster at {address} ({cpus} CPUs)"
             if address
