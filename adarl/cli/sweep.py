@@ -64,6 +64,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="seconds between progress lines of running units (default 60)",
     )
     parser.add_argument(
+        "--track",
+        action="store_true",
+        help="every unit mirrors its TensorBoard scalars and config to Weights & Biases, "
+        "grouped by the sweep's name (pip install 'adarl[track]')",
+    )
+    parser.add_argument("--wandb-project", default=None, help="W&B project (default adarl)")
+    parser.add_argument("--wandb-entity", default=None, help="W&B entity (team or user)")
+    parser.add_argument(
         "--dry-run",
         action="store_true",
         help="check the file and list the units and what each would do; run nothing",
@@ -98,7 +106,30 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         parts += ["--address", args.address]
     if args.workers:
         parts += ["--workers", str(args.workers)]
+    if args.track:
+        parts.append("--track")
+    for name in ("wandb_project", "wandb_entity"):
+        if getattr(args, name):
+            parts += [f"--{name.replace('_', '-')}", getattr(args, name)]
     return shlex.join([*parts, "--max-retries", str(args.max_retries)])
+
+
+def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]:
+    """The `adarl train` flags that mirror every unit to W&B (none without --track); a one-line
+    UsageError if wandb is missing or a --wandb-* flag comes without --track."""
+    from adarl.errors import UsageError
+    from adarl.train import tracking
+
+    given = [n for n in ("wandb_project", "wandb_entity") if getattr(args, n) is not None]
+    if not args.track:
+        if given:
+            raise UsageError(f"--{given[0].replace('_', '-')} is for --track")
+        return ()
+    tracking.import_wandb()
+    flags = ["--track", "--wandb-group", sweep_name]
+    for name in given:
+        flags += [f"--{name.replace('_', '-')}", getattr(args, name)]
+    return tuple(flags)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -111,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
     check_writable_dir(out)  # a dry run too: it promises what a real one would do
     manifest.check_compatible(manifest.read(out), sweep, out)
     runner.check_existing_runs(sweep, out)
+    train_extra = tracking_flags(args, sweep.name)
     if args.dry_run:
         where = (
             f"Ray ({args.address or 'a local instance'})"
@@ -126,6 +158,7 @@ def run(args: argparse.Namespace) -> int:
         max_retries=args.max_retries,
         progress_every=args.progress_every,
         command=command_line(args, out),
+        train_extra=train_extra,
     )
     try:
         code = runner.run_sweep(sweep, out, backend, options)

@@ -48,6 +48,7 @@ class Options:
     max_retries: int = 2  # further attempts per unit after a crash, in one invocation
     progress_every: float = 60.0  # seconds between progress lines of running units
     command: str = ""
+    train_extra: tuple[str, ...] = ()  # `adarl train` flags that change no result (--track)
 
 
 def echo(line: str) -> None:
@@ -202,6 +203,7 @@ class SweepRun:
                 str(self.state_file(unit, "started.json")),
                 "--attempt",
                 str(attempt),
+                *(f"--train-extra={flag}" for flag in self.options.train_extra),
                 "--",
                 *unit.train_args,
             ],
