@@ -4,6 +4,7 @@ process pool or a Ray cluster; re-running the same command resumes it. See docs/
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 from pathlib import Path
 
@@ -114,6 +115,13 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
     return shlex.join([*parts, "--max-retries", str(args.max_retries)])
 
 
+def tracking_env(environ) -> dict[str, str]:
+    """The W&B settings of this shell (WANDB_MODE, WANDB_DIR, ...) for the units, which may run
+    on other nodes; not WANDB_API_KEY, which would travel in every Ray task's arguments: log in
+    on each node instead."""
+    return {k: v for k, v in environ.items() if k.startswith("WANDB_") and k != "WANDB_API_KEY"}
+
+
 def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]:
     """The `adarl train` flags that mirror every unit to W&B (none without --track); a one-line
     UsageError if wandb is missing or a --wandb-* flag comes without --track."""
@@ -153,14 +161,15 @@ def run(args: argparse.Namespace) -> int:
         print(_estimate_line(sweep, out, args, None))
         return 0
     backend = make_backend(args.backend, args.address, args.workers, sweep.cpus_per_unit)
-    print(_estimate_line(sweep, out, args, backend.slots), flush=True)
     options = runner.Options(
         max_retries=args.max_retries,
         progress_every=args.progress_every,
         command=command_line(args, out),
         train_extra=train_extra,
+        train_env=tracking_env(os.environ) if train_extra else {},
     )
     try:
+        print(_estimate_line(sweep, out, args, backend.slots), flush=True)
         code = runner.run_sweep(sweep, out, backend, options)
     except BaseException:
         backend.close(interrupted=True)

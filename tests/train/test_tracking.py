@@ -14,7 +14,7 @@ import pytest
 
 from adarl.cli.main import main
 from adarl.cli.train import add_arguments, build_config
-from adarl.sweeps import worker
+from adarl.sweeps import spec, worker
 from adarl.train import tracking
 
 TINY = ["--algo", "adarl", "--preset", "smoke", "--seeds", "0", "--total-steps", "1000"]
@@ -165,8 +165,16 @@ def test_the_sweep_hands_the_flags_to_its_units(tmp_path, monkeypatch, capsys):
 
     seen = []
     monkeypatch.setattr(runner, "run_sweep", lambda sweep, out, backend, opts: seen.append(opts))
+    monkeypatch.setenv("WANDB_MODE", "offline")
+    monkeypatch.setenv("WANDB_API_KEY", "secret")
     argv = ["sweep", "smoke", "--out", str(tmp_path / "s"), "--workers", "1", "--track"]
     assert main([*argv, "--wandb-project", "p"]) == 0
     options = seen[0]
     assert options.train_extra == ("--track", "--wandb-group", "smoke", "--wandb-project", "p")
     assert "--track --wandb-project p" in options.command
+    assert options.train_env["WANDB_MODE"] == "offline" and "WANDB_API_KEY" not in options.train_env
+    job = runner.SweepRun(spec.load("smoke"), tmp_path, None, None, options).job(
+        spec.load("smoke").units[0], 1
+    )
+    assert job["env"]["WANDB_MODE"] == "offline" and "XLA_FLAGS" in job["env"]
+    assert "--train-extra=--track" in job["worker_args"]
