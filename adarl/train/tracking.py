@@ -74,16 +74,27 @@ def tracked(
         yield None
         return
     wandb = import_wandb()
-    run = wandb.init(
-        project=project or DEFAULT_PROJECT,
-        entity=entity,
-        group=group,
-        name=Path(run_dir).name,
-        id=run_id(run_dir, config),
-        resume="allow",
-        config={**config_dict(config), "run_dir": str(Path(run_dir).resolve()), "command": command},
-        settings=wandb.Settings(console="off"),  # the terminal output stays adarl's own
-    )
+    try:
+        run = wandb.init(
+            project=project or DEFAULT_PROJECT,
+            entity=entity,
+            group=group,
+            name=Path(run_dir).name,
+            id=run_id(run_dir, config),
+            resume="allow",
+            config={
+                **config_dict(config),
+                "run_dir": str(Path(run_dir).resolve()),
+                "command": command,
+            },
+            settings=wandb.Settings(console="off"),  # the terminal output stays adarl's own
+        )
+    except wandb.errors.Error as exc:  # not logged in, an unknown entity, no network
+        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UsageError(
+            f"--track: Weights & Biases did not start a run: {message} "
+            f"(or set WANDB_MODE=offline and `wandb sync` later)"
+        ) from None
     run.define_metric("global_step")
     run.define_metric("*", step_metric="global_step")
     _run = run

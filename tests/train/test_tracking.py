@@ -134,6 +134,18 @@ def test_track_without_wandb_says_what_to_install(tmp_path, capsys, monkeypatch)
     assert list(tmp_path.iterdir()) == []
 
 
+def test_wandb_that_cannot_start_a_run_is_one_line(tmp_path, capsys, monkeypatch):
+    wandb = pytest.importorskip("wandb")
+
+    def not_logged_in(**kwargs):
+        raise wandb.errors.UsageError("No API key configured. Use `wandb login` to log in.")
+
+    monkeypatch.setattr(wandb, "init", not_logged_in)
+    err = _one_line_error(capsys, ["train", *TINY, "--out", str(tmp_path / "run"), "--track"])
+    assert "did not start a run: No API key configured" in err and "WANDB_MODE=offline" in err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_wandb_flags_need_track(tmp_path, capsys):
     for argv in (
         ["train", *TINY, "--out", str(tmp_path / "run"), "--wandb-project", "p"],
