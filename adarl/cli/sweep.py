@@ -4,6 +4,7 @@ process pool or a Ray cluster; re-running the same command resumes it. See docs/
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 from pathlib import Path
 
@@ -64,6 +65,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="seconds between progress lines of running units (default 60)",
     )
     parser.add_argument(
+        "--track",
+        action="store_true",
+        help="every unit mirrors its TensorBoard scalars and config to Weights & Biases, "
+        "grouped by the sweep's name (pip install 'adarl[track]')",
+    )
+    parser.add_argument("--wandb-project", default=None, help="W&B project (default adarl)")
+    parser.add_argument("--wandb-entity", default=None, help="W&B entity (team or user)")
+    parser.add_argument(
         "--dry-run",
         action="store_true",
         help="check the file and list the units and what each would do; run nothing",
@@ -98,7 +107,37 @@ def command_line(args: argparse.Namespace, out: Path) -> str:
         parts += ["--address", args.address]
     if args.workers:
         parts += ["--workers", str(args.workers)]
+    if args.track:
+        parts.append("--track")
+    for name in ("wandb_project", "wandb_entity"):
+        if getattr(args, name):
+            parts += [f"--{name.replace('_', '-')}", getattr(args, name)]
     return shlex.join([*parts, "--max-retries", str(args.max_retries)])
+
+
+def tracking_env(environ) -> dict[str, str]:
+    """The W&B settings of this shell (WANDB_MODE, WANDB_DIR, ...) for the units, which may run
+    on other nodes; not WANDB_API_KEY, which would travel in every Ray task's arguments: log in
+    on each node instead."""
+    return {k: v for k, v in environ.items() if k.startswith("WANDB_") and k != "WANDB_API_KEY"}
+
+
+def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]:
+    """The `adarl train` flags that mirror every unit to W&B (none without --track); a one-line
+    UsageError if wandb is missing or a --wandb-* flag comes without --track."""
+    from adarl.errors import UsageError
+    from adarl.train import tracking
+
+    given = [n for n in ("wandb_project", "wandb_entity") if getattr(args, n) is not None]
+    if not args.track:
+        if given:
+            raise UsageError(f"--{given[0].replace('_', '-')} is for --track")
+        return ()
+    tracking.import_wandb()
+    flags = ["--track", "--wandb-group", sweep_name]
+    for name in given:
+        flags += [f"--{name.replace('_', '-')}", getattr(args, name)]
+    return tuple(flags)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -111,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
     check_writable_dir(out)  # a dry run too: it promises what a real one would do
     manifest.check_compatible(manifest.read(out), sweep, out)
     runner.check_existing_runs(sweep, out)
+    train_extra = tracking_flags(args, sweep.name)
     if args.dry_run:
         where = (
             f"Ray ({args.address or 'a local instance'})"
@@ -118,17 +158,41 @@ def run(args: argparse.Namespace) -> int:
             else f"{args.workers or default_workers(sweep.cpus_per_unit)} local workers"
         )
         print(runner.plan_text(sweep, out, where))
+        print(_estimate_line(sweep, out, args, None))
         return 0
     backend = make_backend(args.backend, args.address, args.workers, sweep.cpus_per_unit)
     options = runner.Options(
         max_retries=args.max_retries,
         progress_every=args.progress_every,
         command=command_line(args, out),
+        train_extra=train_extra,
+        train_env=tracking_env(os.environ) if train_extra else {},
     )
     try:
+        print(_estimate_line(sweep, out, args, backend.slots), flush=True)
         code = runner.run_sweep(sweep, out, backend, options)
     except BaseException:
         backend.close(interrupted=True)
         raise
     backend.close()
     return code
+
+
+def _estimate_line(sweep, out: Path, args: argparse.Namespace, slots: int | None) -> str:
+    """The estimated wall time, for the backend's slots (`None`: a dry run, which starts none)."""
+    from adarl.sweeps import estimate
+    from adarl.sweeps.backends import default_workers
+
+    cores = default_workers(1)
+    cluster = args.backend == "ray" and args.address
+    if slots is None:
+        slots = args.workers or default_workers(sweep.cpus_per_unit)
+    where = "on this machine"
+    if cluster:
+        where = (
+            "if run on this machine (a cluster's CPUs are known once it is joined)"
+            if args.dry_run
+            else "on the cluster, if its CPUs are as fast as this machine's"
+        )
+    found = estimate.for_sweep(sweep, out, slots, None if cluster and not args.dry_run else cores)
+    return estimate.describe(found, where)

@@ -56,6 +56,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="write `adarl report` into RUN_DIR/report when training ends "
         f"(default: on with --preset {' or '.join(REPORT_PRESETS)}, else off)",
     )  # fmt: skip
+    track = parser.add_argument_group("experiment tracking (pip install 'adarl[track]')")
+    track.add_argument(
+        "--track",
+        action="store_true",
+        help="mirror the TensorBoard scalars and the config to Weights & Biases",
+    )
+    track.add_argument("--wandb-project", default=None, help="W&B project (default adarl)")
+    track.add_argument("--wandb-entity", default=None, help="W&B entity (team or user)")
+    track.add_argument("--wandb-group", default=None, help="W&B group (adarl sweep: its name)")
     seen = {"algo"}
     for family, cls in _config_classes().items():
         group = parser.add_argument_group(f"{family.upper()}-family config fields")
@@ -240,7 +249,8 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--resume continues a run with its own settings; drop --{extra}")
         run_dir = Path(args.resume)
         family, config = config_from_run(run_dir)
-        _trainer(family)(config, run_dir, True, not args.no_progress, command)
+        with _tracked(args, run_dir, config, command):
+            _trainer(family)(config, run_dir, True, not args.no_progress, command)
     else:
         family, config = build_config(args)
         task = getattr(config, "task", "task")
@@ -249,7 +259,8 @@ def run(args: argparse.Namespace) -> int:
             if args.out
             else Path("runs") / (f"{task}-{args.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
         )
-        _trainer(family)(config, run_dir, False, not args.no_progress, command)
+        with _tracked(args, run_dir, config, command):
+            _trainer(family)(config, run_dir, False, not args.no_progress, command)
     finish(run_dir, time.monotonic() - started, args.report, args.preset)
     return 0
 
@@ -272,3 +283,20 @@ def finish(run_dir: Path, wall_seconds: float, report: bool | None, preset: str 
         command = shlex.join(["adarl", "report", str(run_dir), "--out", str(report_dir)])
         build_report([run_dir], report_dir, ReportOptions(command=command))
     print(training_summary(run_dir, wall_seconds, report_dir))
+
+
+def _tracked(args: argparse.Namespace, run_dir: Path, config, command: str):
+    from adarl.train import tracking
+
+    for name in ("wandb_project", "wandb_entity", "wandb_group"):
+        if getattr(args, name) is not None and not args.track:
+            raise UsageError(f"--{name.replace('_', '-')} is for --track")
+    return tracking.tracked(
+        args.track,
+        run_dir,
+        config,
+        project=args.wandb_project,
+        entity=args.wandb_entity,
+        group=args.wandb_group,
+        command=command,
+    )

@@ -110,6 +110,7 @@ class LocalBackend:
 
     def __init__(self, workers: int):
         self.workers = workers
+        self.slots = workers  # units at once
         self.where = f"{workers} local worker{'s' * (workers != 1)}"
         self._pool = cf.ThreadPoolExecutor(max_workers=workers, thread_name_prefix="unit")
 
@@ -137,7 +138,7 @@ class RayBackend:
                 ray.init(
                     num_cpus=workers * cpus_per_unit, include_dashboard=False, log_to_driver=False
                 )
-        except (ConnectionError, OSError, RuntimeError, ValueError) as exc:
+        except (ConnectionError, OSError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:
             ray.shutdown()
             message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             where = f"the Ray cluster at {address}" if address else "a local Ray instance"
@@ -146,6 +147,7 @@ class RayBackend:
         self._remote = ray.remote(num_cpus=cpus_per_unit, max_retries=0)(run_job)
         self._refs: dict[cf.Future, object] = {}
         cpus = int(ray.cluster_resources().get("CPU", 0))
+        self.slots = max(1, cpus // cpus_per_unit)  # units at once
         self.where = (
             f"Ray cluster at {address} ({cpus} CPUs)"
             if address
@@ -177,21 +179,51 @@ def import_ray():
     return ray
 
 
-def check_reachable(address: str, timeout_s: float = 5.0) -> None:
-    """A one-line UsageError unless something listens at a Ray address (`auto` is left to
-    Ray, which fails fast when it finds no cluster)."""
+CONNECT_TIMEOUT_S = 5.0  # for the TCP connection and for the first HTTP/2 frame
+# An HTTP/2 client's connection preface and an empty SETTINGS frame: every gRPC server (Ray's GCS,
+# its client server) answers with a SETTINGS frame of its own.
+_HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+
+
+def check_reachable(address: str, timeout_s: float | None = None) -> None:
+    """A one-line UsageError unless a gRPC server answers at a Ray address within `timeout_s`
+    (default CONNECT_TIMEOUT_S): ray.init would otherwise wait minutes on a host that drops
+    packets or a port that accepts and never answers. `auto` is left to Ray, which fails fast
+    when it finds no cluster."""
     if address == "auto":
         return
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
     hostport = address.split("://", 1)[-1]
     host, _, port = hostport.rpartition(":")
     if not host or not port.isdigit():
         raise UsageError(f"Ray address {address!r} is not HOST:PORT, ray://HOST:PORT or auto")
     try:
-        with socket.create_connection((host, int(port)), timeout=timeout_s):
-            pass
+        with socket.create_connection((host, int(port)), timeout=timeout_s) as conn:
+            if os.environ.get("RAY_USE_TLS", "0").lower() in ("0", "false", ""):
+                conn.sendall(_HTTP2_PREFACE)
+                frame = _read_exactly(conn, 9)
+                if len(frame) < 9 or frame[3] != 4:  # frame type 4: SETTINGS
+                    raise UsageError(
+                        f"the Ray cluster at {address} does not answer: something listens "
+                        f"there but it is not a Ray head node (no gRPC reply)"
+                    )
+    except TimeoutError:
+        raise UsageError(
+            f"the Ray cluster at {address} does not answer (no reply in {timeout_s:g} s)"
+        ) from None
     except OSError as exc:
         reason = exc.strerror or type(exc).__name__
         raise UsageError(f"cannot reach the Ray cluster at {address}: {reason}") from None
+
+
+def _read_exactly(conn: socket.socket, n: int) -> bytes:
+    data = b""
+    while len(data) < n:
+        chunk = conn.recv(n - len(data))
+        if not chunk:
+            break
+        data += chunk
+    return data
 
 
 def make_backend(kind: str, address: str | None, workers: int | None, cpus_per_unit: int):

@@ -48,6 +48,8 @@ class Options:
     max_retries: int = 2  # further attempts per unit after a crash, in one invocation
     progress_every: float = 60.0  # seconds between progress lines of running units
     command: str = ""
+    train_extra: tuple[str, ...] = ()  # `adarl train` flags that change no result (--track)
+    train_env: dict[str, str] = dataclasses.field(default_factory=dict)  # added to the units'
 
 
 def echo(line: str) -> None:
@@ -134,7 +136,7 @@ class SweepRun:
     def __init__(self, sweep: Sweep, out: Path, backend, manifest, options: Options):
         self.sweep, self.out, self.backend = sweep, out, backend
         self.manifest, self.options = manifest, options
-        self.env = thread_env(sweep.cpus_per_unit, out / ".jax-cache")
+        self.env = {**options.train_env, **thread_env(sweep.cpus_per_unit, out / ".jax-cache")}
         self.width = max(len(u.id) for u in sweep.units)
         self.in_flight: dict[cf.Future, tuple[Unit, int]] = {}
         self.tries: Counter[str] = Counter()
@@ -202,6 +204,7 @@ class SweepRun:
                 str(self.state_file(unit, "started.json")),
                 "--attempt",
                 str(attempt),
+                *(f"--train-extra={flag}" for flag in self.options.train_extra),
                 "--",
                 *unit.train_args,
             ],

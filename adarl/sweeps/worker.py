@@ -1,7 +1,7 @@
 """One attempt at one sweep unit, as its own process:
 
     python -m adarl.sweeps.worker --run-dir RUN --lock LOCK --marker MARKER --attempt K \
-        [--parent PID] -- TRAIN_ARGS...
+        [--parent PID] [--train-extra=FLAG ...] -- TRAIN_ARGS...
 
 It dies with the process that started it (Linux), holds the unit's lock file while it trains (so
 two processes can never train into the same run folder), then decides, under the lock, what the
@@ -34,6 +34,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--marker", required=True)
     parser.add_argument("--attempt", type=int, required=True)
     parser.add_argument("--parent", type=int, default=None)
+    parser.add_argument(
+        "--train-extra",
+        action="append",
+        default=[],
+        help="an `adarl train` flag for fresh and resumed attempts alike (--train-extra=--track)",
+    )
     parser.add_argument("train_args", nargs=argparse.REMAINDER)
     args = parser.parse_args(argv)
     train_args = args.train_args[1:] if args.train_args[:1] == ["--"] else args.train_args
@@ -81,9 +87,9 @@ def main(argv: list[str] | None = None) -> int:
     if mode == "done":
         return 0
     if mode == "resume":
-        command = ["train", "--resume", str(run_dir), "--no-progress"]
+        command = ["train", "--resume", str(run_dir), "--no-progress", *args.train_extra]
     else:
-        command = ["train", *train_args, "--out", str(run_dir), "--no-progress"]
+        command = ["train", *train_args, "--out", str(run_dir), "--no-progress", *args.train_extra]
     print("$ adarl " + " ".join(command), flush=True)
     sys.argv = ["adarl", *command]  # what `adarl train` records as the run's command
     from adarl.cli.main import main as adarl_main

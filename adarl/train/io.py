@@ -326,9 +326,12 @@ class Scalars:
         self._writer = _summary_writer()(str(log_dir), purge_step=purge_step, flush_secs=30)
 
     def write(self, step: int, scalars: dict[str, float]) -> None:
-        for name, value in scalars.items():
-            if np.isfinite(value):  # a non-finite one is the divergence watch's to report
-                self._writer.add_scalar(name, float(value), int(step))
+        from adarl.train import tracking
+
+        finite = {k: float(v) for k, v in scalars.items() if np.isfinite(v)}
+        for name, value in finite.items():  # a non-finite one is the divergence watch's to report
+            self._writer.add_scalar(name, value, int(step))
+        tracking.log(step, finite)  # `adarl train --track`: the same scalars to W&B
 
     def close(self) -> None:
         try:

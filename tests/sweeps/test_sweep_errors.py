@@ -2,7 +2,9 @@
 folder, no Ray instance)."""
 
 import fcntl
+import socket
 import sys
+import time
 
 import pytest
 
@@ -59,6 +61,27 @@ def test_unreachable_ray_address(tmp_path, capsys):
     )
     assert "cannot reach the Ray cluster at 127.0.0.1:1" in err
     assert not (tmp_path / "out").exists()
+    import ray
+
+    assert not ray.is_initialized()
+
+
+def test_a_ray_address_that_does_not_answer(tmp_path, capsys, monkeypatch):
+    """A port that accepts connections and never replies (a firewall, a hung head node, another
+    service): a one-line error after the connect timeout, not Ray's minutes of retrying."""
+    pytest.importorskip("ray")
+    from adarl.sweeps import backends
+
+    monkeypatch.setattr(backends, "CONNECT_TIMEOUT_S", 0.5)
+    with socket.create_server(("127.0.0.1", 0)) as silent:  # listens, never accepts or answers
+        address = f"127.0.0.1:{silent.getsockname()[1]}"
+        started = time.monotonic()
+        err = _run(
+            capsys, "smoke", "--backend", "ray", "--address", address, "--out", tmp_path / "o"
+        )
+        assert time.monotonic() - started < 10
+    assert f"the Ray cluster at {address} does not answer (no reply in 0.5 s)" in err
+    assert not (tmp_path / "o").exists()
     import ray
 
     assert not ray.is_initialized()

@@ -1,0 +1,300 @@
+"""How long a sweep will take, from measured throughput: `adarl sweep` prints it before it starts
+and with `--dry-run`.
+
+A unit's time is a start-up plus its remaining environment steps, summed over its seeds, divided
+by a measured rate in seed-steps per second of wall time (what a sweep unit pinned to its
+`cpus_per_unit` cores achieved, evaluations, checkpoints, truncations and compilation included).
+The sweep's time is that of the local pool's schedule: units in file order, each to the first
+free slot. Rates come, most specific first, from the unit's own run folder (a resumed sweep),
+from other runs of the same algorithm on the same task in the sweep folder, and from the sweep
+units measured on this 2-core machine and shipped in `throughput.csv` (the committed
+experiments, docs/experiments/); a unit with no measurement of its algorithm on its task borrows
+the rate of the same algorithm on other tasks, of other algorithms on its task or, last, of all
+measurements, and the line says how many
+did.
+
+`python -m adarl.sweeps.estimate SWEEP_DIR...` prints the measurements of finished sweeps as
+rows of `throughput.csv`.
+"""
+
+from __future__ import annotations
+
+import csv
+import heapq
+import io
+import json
+import math
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from adarl.sweeps.spec import Sweep, Unit
+
+MEASURED = Path(__file__).with_name("throughput.csv")
+COLUMNS = ("algo", "task", "label", "seeds", "steps", "train_s", "source")
+# Process start, imports and loading until the first step, per unit attempt: 4-13 s measured
+# (manifest start to the first train.csv interval) in the committed sweeps; compilation is inside
+# the first interval, so inside the rate.
+STARTUP_S = 10.0
+BORROWED = ("algo", "task", "any")  # rates measured on another task or algorithm
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One unit's training: `steps` environment steps per seed for each of `seeds` seeds took
+    `train_s` seconds of wall time."""
+
+    algo: str
+    task: str
+    label: str
+    seeds: int
+    steps: int
+    train_s: float
+    source: str
+
+    @property
+    def seed_steps_per_s(self) -> float:
+        return self.seeds * self.steps / self.train_s
+
+
+@dataclass(frozen=True)
+class UnitEstimate:
+    unit_id: str
+    seconds: float
+    matched: str  # which measurements gave its rate: a key of pick_rate's groups
+
+
+@dataclass(frozen=True)
+class Estimate:
+    seconds: float  # wall time of the schedule
+    unit_seconds: float  # sum over units (compute, in slot-seconds)
+    slots: int
+    units: tuple[UnitEstimate, ...]
+    sources: tuple[str, ...]
+
+    @property
+    def borrowed(self) -> int:
+        return sum(u.matched in BORROWED for u in self.units if u.seconds > 0)
+
+
+# ----------------------------------------------------------------------------- pure pieces
+def train_seconds(rows: list[dict]) -> tuple[int, float]:
+    """(last step, seconds) of a run's train.csv rows: each row's interval since the previous row
+    over its `steps_per_s` (all seeds of a run share one clock; the first seed's rows are used)."""
+    if not rows:
+        return 0, 0.0
+    first = rows[0]["seed"]
+    step, seconds = 0, 0.0
+    for row in rows:
+        if row["seed"] != first:
+            continue
+        now, rate = int(float(row["step"])), float(row["steps_per_s"])
+        if rate > 0 and math.isfinite(rate):
+            seconds += (now - step) / rate
+        step = now
+    return step, seconds
+
+
+def pick_rate(
+    unit: Unit, own: list[Measurement], here: list[Measurement], shipped: list[Measurement]
+) -> tuple[float, str, tuple[str, ...]]:
+    """Seed-steps per second for `unit`, which group of measurements gave it, and their sources:
+    the unit's own run (`own`), else the most specific match, measurements in the sweep folder
+    (`here`) before the shipped ones at each level."""
+
+    def same(key):
+        return lambda m: key(m) == key(unit)
+
+    levels = [("own run", [own], lambda m: True)]
+    for level, key in (
+        ("label and task", same(lambda x: (x.label, x.task))),
+        ("algo and task", same(lambda x: (x.algo, x.task))),
+        ("algo", same(lambda x: x.algo)),
+        ("task", same(lambda x: x.task)),
+        ("any", lambda m: True),
+    ):
+        levels.append((level, [here, shipped], key))
+    for level, pools, key in levels:
+        for pool in pools:
+            group = [m for m in pool if key(m) and m.train_s > 0 and m.steps > 0]
+            if group:  # pooled: total seed-steps over total seconds
+                rate = sum(m.seeds * m.steps for m in group) / sum(m.train_s for m in group)
+                return rate, level, tuple(sorted({m.source for m in group}))
+    raise ValueError("no throughput measurement at all")
+
+
+def schedule_seconds(durations: list[float], slots: int) -> float:
+    """Wall time of running `durations` in order on `slots` slots, each job to the first free
+    slot (what the local pool and Ray do with equal units)."""
+    free = [0.0] * max(1, slots)
+    for duration in durations:
+        start = heapq.heappop(free)
+        heapq.heappush(free, start + duration)
+    return max(free)
+
+
+def estimate(
+    sweep: Sweep,
+    remaining: dict[str, int],
+    slots: int,
+    shipped: list[Measurement],
+    here: dict[str, Measurement] | None = None,
+    cores: int | None = None,
+) -> Estimate:
+    """The sweep's wall time on `slots` slots with `remaining[unit.id]` steps per seed left per
+    unit (0: done; default: its budget), from the `shipped` measurements and those of the runs
+    already in the sweep folder (`here`, by unit id). Units that would share cores
+    (slots × cpus_per_unit > `cores`) run proportionally slower than measured (the measurements
+    had a core per unit)."""
+    here = here or {}
+    share = 1.0
+    if cores and slots * sweep.cpus_per_unit > cores:
+        share = cores / (slots * sweep.cpus_per_unit)
+    units, sources = [], set()
+    for unit in sweep.units:
+        steps = remaining.get(unit.id, unit.total_steps)
+        if steps <= 0:
+            units.append(UnitEstimate(unit.id, 0.0, "own run"))
+            continue
+        own = [here[unit.id]] if unit.id in here else []
+        rate, matched, used = pick_rate(unit, own, list(here.values()), shipped)
+        seconds = STARTUP_S + len(unit.seeds) * steps / (rate * share)
+        units.append(UnitEstimate(unit.id, seconds, matched))
+        sources.update(used)
+    todo = [u.seconds for u in units if u.seconds > 0]
+    return Estimate(
+        seconds=schedule_seconds(todo, slots),
+        unit_seconds=sum(todo),
+        slots=slots,
+        units=tuple(units),
+        sources=tuple(sorted(sources)),
+    )
+
+
+def duration_text(seconds: float) -> str:
+    minutes = seconds / 60
+    if minutes < 1:
+        return "under a minute"
+    if minutes < 100:
+        return f"~{minutes:.0f} min"
+    if minutes < 48 * 60:
+        return f"~{minutes / 60:.1f} h"
+    return f"~{minutes / 60 / 24:.1f} days"
+
+
+def describe(result: Estimate, where: str) -> str:
+    """One line: `estimated wall time: ~78 min on this machine (2 workers; ...)`."""
+    todo = [u for u in result.units if u.seconds > 0]
+    if not todo:
+        return "estimated wall time: nothing left to run"
+    sources = ", ".join(result.sources)
+    borrowed = (
+        f"; {result.borrowed} of {len(todo)} units borrow the rate of another algorithm or task"
+        if result.borrowed
+        else ""
+    )
+    hours = result.unit_seconds / 3600
+    compute = f", {hours:.1f} unit-hours" if hours >= 0.1 else ""
+    return (
+        f"estimated wall time: {duration_text(result.seconds)} {where} ({result.slots} "
+        f"worker{'s' * (result.slots != 1)}; {len(todo)} unit{'s' * (len(todo) != 1)}{compute}; "
+        f"from measured throughput of {sources}{borrowed})"
+    )
+
+
+# ----------------------------------------------------------------------------- files
+def read_measurements(path: Path = MEASURED) -> list[Measurement]:
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
+    return [
+        Measurement(
+            algo=r["algo"],
+            task=r["task"],
+            label=r["label"],
+            seeds=int(r["seeds"]),
+            steps=int(r["steps"]),
+            train_s=float(r["train_s"]),
+            source=r["source"],
+        )
+        for r in rows
+    ]
+
+
+def measure_run(run_dir: Path, unit_fields: dict, source: str) -> Measurement | None:
+    """What a run folder's train.csv says about its unit's speed, or None if it has no rows."""
+    from adarl.train.io import read_csv
+
+    path = Path(run_dir) / "train.csv"
+    if not path.exists():
+        return None
+    try:
+        steps, seconds = train_seconds(read_csv(path))
+    except (OSError, ValueError, KeyError):
+        return None
+    if steps <= 0 or seconds <= 0:
+        return None
+    return Measurement(
+        algo=unit_fields["algo"],
+        task=unit_fields["task"],
+        label=unit_fields["label"],
+        seeds=len(unit_fields["seeds"]),
+        steps=steps,
+        train_s=seconds,
+        source=source,
+    )
+
+
+def remaining_steps(out: Path, unit: Unit) -> int:
+    """Steps per seed a run of `unit` still has to train: from its newest checkpoint."""
+    from adarl.train.io import checkpoint_dirs
+
+    run_dir = Path(out) / unit.id
+    if (run_dir / "DONE").exists():
+        return 0
+    found = checkpoint_dirs(run_dir)
+    done = int(found[-1].name.split("_")[1]) if found else 0
+    return max(0, unit.total_steps - done)
+
+
+def for_sweep(sweep: Sweep, out: Path, slots: int, cores: int | None = None) -> Estimate:
+    """The estimate for running `sweep` into `out` now, from the shipped measurements and the
+    runs already in `out`."""
+    here = {}
+    for unit in sweep.units:
+        fields = {"algo": unit.algo, "task": unit.task, "label": unit.label, "seeds": unit.seeds}
+        found = measure_run(Path(out) / unit.id, fields, "this sweep's runs")
+        if found is not None:
+            here[unit.id] = found
+    remaining = {u.id: remaining_steps(out, u) for u in sweep.units}
+    return estimate(sweep, remaining, slots, read_measurements(), here, cores)
+
+
+def measurements_of(sweep_dir: Path, source: str) -> list[Measurement]:
+    """Measurements of every unit of a sweep folder with a train.csv (its manifest lists them)."""
+    data = json.loads((Path(sweep_dir) / "manifest.json").read_text(encoding="utf-8"))
+    found = []
+    for uid, record in sorted(data["units"].items()):
+        m = measure_run(Path(sweep_dir) / uid, record, source)
+        if m is not None:
+            found.append(m)
+    return found
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for sweep_dir in argv:
+        name = os.path.basename(os.path.normpath(sweep_dir))
+        for m in measurements_of(Path(sweep_dir), f"{name} sweep"):
+            writer.writerow(
+                [m.algo, m.task, m.label, m.seeds, m.steps, f"{m.train_s:.1f}", m.source]
+            )
+    print(out.getvalue(), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,193 @@
+"""The sweep's wall-time estimate: its pieces on constructed inputs, the runs of a resumed sweep,
+the line `adarl sweep` prints, and the shipped measurements against the committed experiments'
+real wall times."""
+
+import json
+
+import pytest
+
+from adarl.cli.main import main
+from adarl.sweeps import estimate, spec
+from adarl.sweeps.estimate import Measurement
+from adarl.sweeps.spec import Sweep, Unit
+
+
+def _unit(uid="hopper/adarl/seeds-0-2", algo="adarl", task="hopper", label="adarl", seeds=3):
+    return Unit(uid, task, algo, label, tuple(range(seeds)), 120_000, (), None)
+
+
+def _measured(rate, algo="adarl", task="hopper", label="adarl", source="shipped"):
+    """A measurement of `rate` seed-steps per second (one seed, 100 s)."""
+    return Measurement(algo, task, label, 1, rate * 100, 100.0, source)
+
+
+def test_train_seconds_adds_each_interval_over_its_rate():
+    rows = [
+        {"step": "2000", "seed": "0", "steps_per_s": "100"},  # 20 s (compilation included)
+        {"step": "2000", "seed": "1", "steps_per_s": "100"},  # the same clock: not counted again
+        {"step": "4000", "seed": "0", "steps_per_s": "200"},  # 10 s
+        {"step": "4000", "seed": "1", "steps_per_s": "200"},
+    ]
+    assert estimate.train_seconds(rows) == (4000, pytest.approx(30.0))
+    assert estimate.train_seconds([]) == (0, 0.0)
+
+
+@pytest.mark.parametrize(
+    "durations, slots, expected",
+    [
+        ([10, 10, 10], 2, 20),
+        ([10, 10, 30], 2, 40),  # file order: the long unit starts last
+        ([30, 10, 10, 10], 2, 30),
+        ([5, 5, 5], 8, 5),
+        ([7, 8], 1, 15),
+    ],
+)
+def test_schedule_gives_each_unit_the_first_free_slot(durations, slots, expected):
+    assert estimate.schedule_seconds(durations, slots) == expected
+
+
+def test_the_most_specific_measurement_gives_the_rate():
+    unit = _unit(label="adarl_rank_rule-energy")
+    shipped = [
+        _measured(100, label="adarl_rank_rule-energy"),
+        _measured(200, label="adarl_rank_rule-cumulative"),
+        _measured(400, algo="sac", label="sac"),
+        _measured(800, task="walker2d", label="adarl_rank_rule-energy"),
+    ]
+    here = [_measured(50, label="adarl_other", source="this sweep's runs")]
+    own = [_measured(25, source="this sweep's runs")]
+    assert estimate.pick_rate(unit, own, here, shipped)[:2] == (pytest.approx(25), "own run")
+    assert estimate.pick_rate(unit, [], here, shipped)[:2] == (
+        pytest.approx(100),
+        "label and task",
+    )
+    # the sweep folder's runs before the shipped ones at the same level
+    assert estimate.pick_rate(_unit(), [], here, shipped)[:2] == (
+        pytest.approx(50),
+        "algo and task",
+    )
+    # pooled over the two adarl measurements on hopper (100 s each)
+    rate, level, sources = estimate.pick_rate(_unit(), [], [], shipped)
+    assert (rate, level, sources) == (pytest.approx((100 + 200) / 2), "algo and task", ("shipped",))
+    ant = _unit(task="ant", label="adarl")
+    assert estimate.pick_rate(ant, [], [], shipped)[:2] == (
+        pytest.approx((100 + 200 + 800) / 3),
+        "algo",
+    )
+    rnac = _unit(algo="rnac", label="rnac")
+    assert estimate.pick_rate(rnac, [], [], shipped)[1] == "task"
+    assert estimate.pick_rate(_unit(algo="rnac", task="ant"), [], [], shipped)[1] == "any"
+
+
+def test_estimate_of_a_sweep_from_constructed_measurements():
+    units = tuple(_unit(f"hopper/adarl/seeds-{i}") for i in range(4))
+    sweep = Sweep("s", "s.yaml", units)
+    shipped = [_measured(300)]  # 3 seeds x 120k steps at 300 seed-steps/s: 1200 s per unit
+    unit_s = estimate.STARTUP_S + 1200
+    full = estimate.estimate(sweep, {}, 2, shipped, cores=2)
+    assert full.seconds == pytest.approx(2 * unit_s)
+    assert full.unit_seconds == pytest.approx(4 * unit_s)
+    assert full.borrowed == 0
+
+    # resuming: one unit done, one at its checkpoint half-way
+    remaining = {units[0].id: 0, units[1].id: 60_000}
+    resumed = estimate.estimate(sweep, remaining, 2, shipped, cores=2)
+    assert resumed.unit_seconds == pytest.approx(estimate.STARTUP_S + 600 + 2 * unit_s)
+    assert resumed.seconds == pytest.approx(unit_s + estimate.STARTUP_S + 600)
+
+    # 4 workers on 2 cores share them: half the measured rate each
+    crowded = estimate.estimate(sweep, {}, 4, shipped, cores=2)
+    assert crowded.seconds == pytest.approx(estimate.STARTUP_S + 2400)
+
+    line = estimate.describe(full, "on this machine")
+    assert line == (
+        "estimated wall time: ~40 min on this machine (2 workers; 4 units, 1.3 unit-hours; "
+        "from measured throughput of shipped)"
+    )
+    other = estimate.estimate(sweep, {}, 2, [_measured(300, algo="sac", label="sac")], cores=2)
+    assert "4 of 4 units borrow the rate of another algorithm or task" in estimate.describe(
+        other, "on this machine"
+    )
+    done = estimate.estimate(sweep, {u.id: 0 for u in units}, 2, shipped)
+    assert estimate.describe(done, "here") == "estimated wall time: nothing left to run"
+
+
+def _fake_run(run_dir, steps_per_s, last_step, checkpoint=None, done=False):
+    run_dir.mkdir(parents=True)
+    lines = ["step,seed,steps_per_s"]
+    for step in range(2000, last_step + 1, 2000):
+        lines += [f"{step},{seed},{steps_per_s}" for seed in range(3)]
+    (run_dir / "train.csv").write_text("\n".join(lines) + "\n")
+    if checkpoint:
+        meta = run_dir / "checkpoints" / f"step_{checkpoint:012d}" / "meta.json"
+        meta.parent.mkdir(parents=True)
+        meta.write_text("{}")
+        (meta.parent / "arrays.npz").write_bytes(b"")
+    if done:
+        (run_dir / "DONE").write_text(f"{last_step}\n")
+
+
+def test_a_resumed_sweep_uses_its_own_runs(tmp_path):
+    doc = {
+        "name": "two",
+        "tasks": ["hopper"],
+        "algos": ["sac", "adarl"],
+        "seeds": "0-2",
+        "budget": 20_000,
+        "preset": "smoke",
+    }
+    sweep = spec.parse(doc)
+    sac, adarl = sweep.units
+    _fake_run(tmp_path / sac.id, 50, 20_000, 20_000, done=True)
+    _fake_run(tmp_path / adarl.id, 100, 12_000, checkpoint=10_000)  # 20k more
+    found = estimate.for_sweep(sweep, tmp_path, 2, cores=2)
+    by_id = {u.unit_id: u for u in found.units}
+    assert by_id[sac.id].seconds == 0
+    # its own rate: 3 seeds x 12k steps in 120 s; 10k steps per seed left
+    assert by_id[adarl.id].seconds == pytest.approx(estimate.STARTUP_S + 3 * 10_000 / 300)
+    assert by_id[adarl.id].matched == "own run"
+    assert found.sources == ("this sweep's runs",)
+
+
+def test_dry_run_and_start_print_the_estimate(tmp_path, capsys, monkeypatch):
+    assert main(["sweep", "rank-rules", "--dry-run", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-1].startswith("estimated wall time: ~79 min on this machine (2 workers; 8 units")
+    assert not (tmp_path / "o").exists()
+
+    from adarl.sweeps import runner
+
+    seen = []
+    monkeypatch.setattr(runner, "run_sweep", lambda *a: seen.append(a) or 0)
+    argv = ["sweep", "smoke", "--out", str(tmp_path / "o"), "--workers", "1"]
+    assert main(argv) == 0
+    assert capsys.readouterr().out.startswith("estimated wall time: under a minute on this")
+    assert seen
+
+
+def _real_wall_s(name):
+    """The committed experiments' sweep wall times (docs/experiments/<name>.md)."""
+    return {"rank-rules": 78 * 60, "fixed-rank-u": 82 * 60}[name]
+
+
+@pytest.mark.parametrize("name", ["rank-rules", "fixed-rank-u"])
+def test_shipped_measurements_against_the_committed_experiments(name):
+    sweep = spec.load(name)
+    shipped = estimate.read_measurements()
+    own = estimate.estimate(sweep, {}, 2, shipped, cores=2)  # from its own units' measurements
+    assert own.seconds == pytest.approx(_real_wall_s(name), rel=0.03)
+    source = f"docs/experiments/{name}.md"
+    other = [m for m in shipped if m.source != source]  # from the other experiment only
+    borrowed = estimate.estimate(sweep, {}, 2, other, cores=2)
+    assert 0.7 < borrowed.seconds / _real_wall_s(name) < 1.35
+
+
+def test_measurements_of_a_sweep_folder(tmp_path):
+    sweep = tmp_path / "sw"
+    uid = "hopper/sac/seeds-0-2"
+    _fake_run(sweep / uid, 50, 4000)
+    record = {"algo": "sac", "task": "hopper", "label": "sac", "seeds": [0, 1, 2]}
+    (sweep / "manifest.json").write_text(json.dumps({"units": {uid: record}}))
+    assert estimate.measurements_of(sweep, "x") == [
+        Measurement("sac", "hopper", "sac", 3, 4000, pytest.approx(80.0), "x")
+    ]
