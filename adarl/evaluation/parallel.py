@@ -77,21 +77,9 @@ def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
 
 def _run_ray(units: Sequence, workers: int, address: str | None, bar) -> list[list[dict]]:
     from adarl.evaluation.evaluate import run_unit
-    from adarl.sweeps.backends import check_reachable, import_ray
+    from adarl.sweeps.backends import connect_ray
 
-    ray = import_ray()
-    if address:
-        check_reachable(address)
-    try:
-        if address:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
-        else:
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
-    except (ConnectionError, OSError, RuntimeError, ValueError) as exc:
-        ray.shutdown()
-        where = f"the Ray cluster at {address}" if address else "a local Ray instance"
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise UsageError(f"cannot start or reach {where}: {first}") from None
+    ray = connect_ray(address, workers)
     try:
         remote = ray.remote(num_cpus=1)(run_unit)
         refs = [remote.remote(unit) for unit in units]

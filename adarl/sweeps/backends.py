@@ -124,25 +124,30 @@ class LocalBackend:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
 
+def connect_ray(address: str | None, cpus: int):
+    """`ray.init` on the cluster at `address` (checked to answer first), or on a local instance
+    with `cpus` CPUs; returns the `ray` module. Any failure is a one-line `UsageError`."""
+    ray = import_ray()
+    if address:
+        check_reachable(address)
+    try:
+        if address:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False)
+    except (ConnectionError, OSError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:
+        ray.shutdown()
+        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        where = f"the Ray cluster at {address}" if address else "a local Ray instance"
+        raise UsageError(f"cannot start or reach {where}: {message}") from None
+    return ray
+
+
 class RayBackend:
     name = "ray"
 
     def __init__(self, address: str | None, workers: int, cpus_per_unit: int):
-        ray = import_ray()
-        if address:
-            check_reachable(address)
-        try:
-            if address:
-                ray.init(address=address, include_dashboard=False, log_to_driver=False)
-            else:
-                ray.init(
-                    num_cpus=workers * cpus_per_unit, include_dashboard=False, log_to_driver=False
-                )
-        except (ConnectionError, OSError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:
-            ray.shutdown()
-            message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            where = f"the Ray cluster at {address}" if address else "a local Ray instance"
-            raise UsageError(f"cannot start or reach {where}: {message}") from None
+        ray = connect_ray(address, workers * cpus_per_unit)
         self._ray = ray
         self._remote = ray.remote(num_cpus=cpus_per_unit, max_retries=0)(run_job)
         self._refs: dict[cf.Future, object] = {}
