@@ -14,6 +14,7 @@ import argparse
 import shlex
 from pathlib import Path
 
+from adarl.cli.common import add_checkpoint_argument
 from adarl.errors import UsageError
 
 HELP = "evaluate every seed of a run under nominal, fixed or swept dynamics (CSV per run)"
@@ -39,13 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--hold", action="append", default=[], metavar="P=V", help="hold parameter P at V"
     )
     parser.add_argument("--episodes", type=int, default=10, help="episodes per seed and point")
-    parser.add_argument(
-        "--checkpoint",
-        type=int,
-        default=None,
-        metavar="STEP",
-        help="checkpoint step (default: final)",
-    )
+    add_checkpoint_argument(parser)
     parser.add_argument(
         "--workers", type=int, default=None, help="worker processes (default: all cores)"
     )
