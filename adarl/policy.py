@@ -137,7 +137,7 @@ def to_bytes(arrays: dict[str, np.ndarray]) -> bytes:
 
 def save(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
     """Write a policy file atomically."""
-    from adarl.train.io import atomic_write_bytes
+    from adarl.files import atomic_write_bytes
 
     atomic_write_bytes(path, to_bytes(arrays))
 

@@ -17,7 +17,7 @@ process per seed (`--sb3-procs` at a time, one torch thread each).
 
 Every `--eval-every` steps, after that chunk's updates, each seed's deterministic policy
 (tanh of the mean) runs `--eval-episodes` episodes on `nominal` dynamics through the same code for
-both: `adarl.evaluation.rollout.run_episodes` with a `NumpyPolicy` and the evaluation seeds of our
+both: `adarl.envs.rollout.run_episodes` with a `NumpyPolicy` and the evaluation seeds of our
 trainer. SB3's actor is copied into that format and checked against its own `predict`.
 
 Writes to --out: curves.csv (impl, seed, step, return = mean over the evaluation episodes),
@@ -47,7 +47,7 @@ configure_xla()  # inherited by the `adarl train` subprocess
 
 import numpy as np  # noqa: E402
 
-from adarl.cli.train import parse_int_list  # noqa: E402
+from adarl.algos.flags import parse_int_list  # noqa: E402
 from adarl.errors import UsageError  # noqa: E402
 from adarl.evaluation import stats  # noqa: E402
 from adarl.train.io import atomic_write_bytes, atomic_write_text, read_csv  # noqa: E402
@@ -160,7 +160,7 @@ def cli_flags(config) -> list[str]:
 # ============================================================================ adarl
 def train_adarl(config, run_dir: Path) -> tuple[dict[int, list], float]:
     """Train our `sac` through the CLI into `run_dir`; returns ({seed: [(step, return)]}, wall s)."""
-    from adarl.train.sac_loop import load_run_config
+    from adarl.train.run_folder import load_config as load_run_config
 
     command = [sys.executable, "-m", "adarl.cli.main", "train", "--algo", "sac"]
     command += ["--preset", "paper", *cli_flags(config), "--out", str(run_dir), "--no-progress"]
@@ -230,7 +230,7 @@ def train_sb3(job: dict) -> dict:
     from stable_baselines3.common.callbacks import BaseCallback
 
     from adarl.envs import make
-    from adarl.evaluation.rollout import run_episodes
+    from adarl.envs.rollout import run_episodes
     from adarl.policy import NumpyPolicy
 
     torch.set_num_threads(1)

@@ -141,7 +141,7 @@ def update_cost(width: int, rank: int, n: int = 200) -> float:
             config=config,
         )
     state = jax.device_put(sac.init_state(spec, 0))
-    from adarl.train import buffer as replay
+    from adarl.algos import replay
 
     rows = {
         "obs": np.random.default_rng(0).normal(size=(n + 1, 11)).astype(np.float32),

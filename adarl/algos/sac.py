@@ -23,12 +23,12 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from adarl.algos import replay
 from adarl.envs.tasks import PHYSICS, VERSIONS
 from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
 from adarl.nets import mlp, rank
 from adarl.nets.regularisers import parseval_penalty
 from adarl.policy import LOG_STD_MAX, LOG_STD_MIN
-from adarl.train import buffer as replay
 
 
 # ============================================================================ config
@@ -37,47 +37,49 @@ class SACConfig:
     """Every hyperparameter of a SAC-family run. Defaults: the AdaRL paper's setting."""
 
     # --- run
-    algo: str = "adarl"
-    task: str = "hopper"
+    algo: str = "adarl"  # the algorithm (adarl train --algo)
+    task: str = "hopper"  # hopper, walker2d, ant or humanoid (adarl tasks)
+    # physics schedule: paper, ompo, nominal, uniform, default, fixed:p=v,… (docs/envs.md)
     dynamics: str = "paper"
     physics: str = "consistent"  # consistent (recompile: masses follow geometry) or ompo
     model_version: str = "v5"  # Gymnasium's v5 or v4 (the port of the paper's Gym v3) models
-    seeds: tuple[int, ...] = (0,)
-    total_steps: int = 1_000_000
+    seeds: tuple[int, ...] = (0,)  # seeds trained together in one process, e.g. 0-4
+    total_steps: int = 1_000_000  # environment steps per seed
     # the seeds form this many lanes (at most one per seed), each one vmapped update on its own
     # device; a lane's environments step on the host while other lanes' updates run
     lanes: int = 4
     # --- SAC (paper appendix / Spinning Up)
-    hidden: tuple[int, ...] = (64, 64)
-    activation: str = "relu"
-    lr_actor: float = 3e-3
-    lr_critic: float = 3e-3
-    gamma: float = 0.99
-    polyak: float = 0.995
-    batch_size: int = 256
-    buffer_size: int = 1_000_000
+    hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics
+    activation: str = "relu"  # hidden-layer activation
+    lr_actor: float = 3e-3  # Adam learning rate of the actor
+    lr_critic: float = 3e-3  # Adam learning rate of the critics
+    gamma: float = 0.99  # discount factor
+    polyak: float = 0.995  # target networks: θ' ← polyak·θ' + (1 − polyak)·θ after each update
+    batch_size: int = 256  # replay samples per gradient step
+    buffer_size: int = 1_000_000  # replay buffer capacity per seed (transitions)
     start_steps: int = 10_000  # uniform random actions before this many steps
     update_after: int = 1_000  # no updates before this many steps
     update_every: int = 50  # env steps between update bursts; one update per env step overall
-    max_episode_steps: int = 1000
+    max_episode_steps: int = 1000  # time limit of an episode (truncation)
     alpha: float = 0.2  # entropy coefficient (initial value when autotuned)
-    autotune_alpha: bool = False
+    autotune_alpha: bool = False  # learn α to keep the policy entropy at target-entropy (SAC v2)
     target_entropy: float | None = None  # default −|A|
-    lr_alpha: float = 3e-4
+    lr_alpha: float = 3e-4  # Adam learning rate of log α (with autotune-alpha)
     init: str = "torch"  # torch (nn.Linear defaults) or orthogonal
     # --- bottleneck / rank adaptation (AdaRL)
     bottleneck: tuple[str, ...] = ()  # layers to factorise: "actor:1", "critic:1" (hidden→hidden)
     rank: int = 0  # initial (fixed-rank: constant) rank; 0 = full width
+    # cut the bottlenecks' rank by SVD every truncate-every gradient steps (AdaRL)
     adapt_rank: bool = False
     truncate_every: int = 1_000_000  # d_t, in policy-optimisation (gradient) steps
-    beta: float = 0.98
+    beta: float = 0.98  # the rank rule's threshold β (e.g. the energy kept by the cut)
     # energy (the default, docs/experiments/rank-rules.md), cumulative (the paper's Eq. 5),
     # ratio (Eq. 7), energy-squared
     rank_rule: str = "energy"
     # the retain clause: a cut is kept only if the truncated network's relative output error on
     # `retain_samples` replay rows is at most this; None (flag value `off`) accepts every cut
     retain_tolerance: float | None = None
-    retain_samples: int = 1024
+    retain_samples: int = 1024  # replay rows the retain clause measures the output error on
     # envelope: one cosine over the whole run, warm-ups rise to it (ReLoRA); restart: a full
     # warm-up + cosine in every iteration of d_t steps
     lr_schedule: str = "envelope"
@@ -91,21 +93,21 @@ class SACConfig:
     parseval_coef: float = 0.0  # c in c·‖WWᵀ − sI‖²_F (sac-parseval)
     parseval_scale: float = 2.0  # s
     sparse_width: int = 0  # >0: one hidden layer this wide + a sparse-coding layer (sac-sparse)
-    sparse_eta: float = 0.1
-    sparse_lambda: float = 0.1
+    sparse_eta: float = 0.1  # ISTA step size η of the sparse-coding layer
+    sparse_lambda: float = 0.1  # ISTA soft threshold λ of the sparse-coding layer
     # --- evaluation, logging, checkpoints
-    eval_every: int = 10_000
-    eval_episodes: int = 5
-    eval_dynamics: tuple[str, ...] = ("nominal",)
-    log_every: int = 5_000
-    checkpoint_every: int = 50_000
-    keep_checkpoints: int = 2
+    eval_every: int = 10_000  # environment steps between evaluations
+    eval_episodes: int = 5  # deterministic episodes per seed and evaluation dynamics
+    eval_dynamics: tuple[str, ...] = ("nominal",)  # dynamics to evaluate under (comma-separated)
+    log_every: int = 5_000  # environment steps between train.csv rows
+    checkpoint_every: int = 50_000  # environment steps between checkpoints
+    keep_checkpoints: int = 2  # newest checkpoints kept on disk
     # a non-finite loss, parameter or return: stop (exit code 3) or continue (docs/reliability.md)
     on_divergence: str = "stop"
 
     def validate(self) -> SACConfig:
         """Raise a one-line UsageError on any bad value."""
-        from adarl.algos import ALGOS
+        from adarl.algos.registry import ALGOS
 
         check_numbers(self)
         check_choice("algo", self.algo, ALGOS)
@@ -815,13 +817,3 @@ def export_policy(
         out["log_std_b"] = np.asarray(actor["log_std"]["b"])
     out["n_params_full"] = np.array(n_full)
     return out
-
-
-def config_from_dict(values: dict) -> SACConfig:
-    """Build a config from plain values (YAML / CLI), converting lists to tuples."""
-    names = {f.name for f in dataclasses.fields(SACConfig)}
-    unknown = sorted(set(values) - names)
-    if unknown:
-        raise UsageError(f"unknown config field {unknown[0]!r} for the SAC family")
-    fixed = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-    return SACConfig(**fixed)

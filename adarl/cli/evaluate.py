@@ -15,6 +15,7 @@ import argparse
 import shlex
 from pathlib import Path
 
+from adarl.cli.common import add_checkpoint_argument
 from adarl.errors import UsageError
 
 HELP = "evaluate every seed of a run under nominal, fixed or swept dynamics (CSV per run)"
@@ -48,13 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--episodes", type=int, default=None,
         help="episodes per seed and point (default 10, or the suite's)",
     )  # fmt: skip
-    parser.add_argument(
-        "--checkpoint",
-        type=int,
-        default=None,
-        metavar="STEP",
-        help="checkpoint step (default: final)",
-    )
+    add_checkpoint_argument(parser)
     parser.add_argument(
         "--workers", type=int, default=None, help="worker processes (default: all cores)"
     )
@@ -65,7 +60,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--address", default=None, metavar="HOST:PORT", help="--backend ray: a Ray cluster"
     )
-    parser.add_argument("--no-progress", action="store_true", help="--suite: no progress bar")
     parser.add_argument(
         "--out", default=None, metavar="CSV",
         help="output CSV (one run only; default RUN_DIR/evaluations/<name>.csv)",

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+from adarl.cli.common import add_checkpoint_argument
+
 HELP = "export one seed's deterministic policy as a NumPy-only .npz file"
 
 
@@ -17,13 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", metavar="RUN_DIR", help="a run folder")
     parser.add_argument("--seed", type=int, default=None, help="seed (default: the lowest)")
     parser.add_argument("--out", required=True, metavar="FILE", help="output .npz file")
-    parser.add_argument(
-        "--checkpoint",
-        type=int,
-        default=None,
-        metavar="STEP",
-        help="checkpoint step (default: final)",
-    )
+    add_checkpoint_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -12,6 +12,7 @@ import os
 import sys
 
 from adarl import __version__
+from adarl.cli.common import add_common_arguments
 from adarl.errors import RunFailed, UsageError
 from adarl.runtime import configure_xla
 
@@ -51,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
             continue  # command not built yet
         p = sub.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
+        add_common_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
 

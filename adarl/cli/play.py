@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+from adarl.cli.common import add_checkpoint_argument
+
 HELP = "render a seed's policy offscreen to a video (.mp4 or .gif) under chosen dynamics"
 
 
@@ -24,13 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--video", required=True, metavar="FILE", help="output .mp4 or .gif")
     parser.add_argument("--episodes", type=int, default=1, help="episodes to render (default 1)")
-    parser.add_argument(
-        "--checkpoint",
-        type=int,
-        default=None,
-        metavar="STEP",
-        help="checkpoint step (default: final)",
-    )
+    add_checkpoint_argument(parser)
     parser.add_argument("--env-seed", type=int, default=0, help="episode k resets with seed+k")
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)

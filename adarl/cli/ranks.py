@@ -19,9 +19,9 @@ def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
     """Lines of a table: step, layer, then one column per seed with `old→new` ranks; a cut the
     retain clause refused shows as `old→old (retained r_c, err e)`."""
     from adarl.train.io import read_csv
-    from adarl.train.sac_loop import load_run_config
+    from adarl.train.run_folder import load_config
 
-    config = load_run_config(run_dir)
+    config = load_config(run_dir)
     path = run_dir / "truncations.csv"
     if not path.exists():
         raise UsageError(

@@ -163,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
     backend = make_backend(args.backend, args.address, args.workers, sweep.cpus_per_unit)
     options = runner.Options(
         max_retries=args.max_retries,
-        progress_every=args.progress_every,
+        progress_every=float("inf") if args.no_progress else args.progress_every,
         command=command_line(args, out),
         train_extra=train_extra,
         train_env=tracking_env(os.environ) if train_extra else {},

@@ -17,7 +17,8 @@ import pandas as pd
 
 from adarl.evaluation.evaluate import EVALUATIONS_DIR
 from adarl.evaluation.runs import Run, checkpoint_step, policy_files
-from adarl.train.io import checkpoint_dirs, read_csv
+from adarl.train.io import read_csv
+from adarl.train.run_folder import checkpoint_dirs
 
 NOMINAL = "nominal"
 CURVE_BINS = 50

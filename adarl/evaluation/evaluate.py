@@ -150,7 +150,7 @@ def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
 # ----------------------------------------------------------------------------- running
 def run_unit(unit: Unit) -> list[dict]:
     """Run one unit's episodes; rows carry `step, seed, dynamics` in front."""
-    from adarl.evaluation.rollout import run_episodes
+    from adarl.envs.rollout import run_episodes
     from adarl.policy import load
 
     policy = load(unit.policy_path)

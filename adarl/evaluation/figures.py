@@ -102,6 +102,20 @@ def _log2_axis(ax, which: str) -> None:
     axis.set_minor_locator(matplotlib.ticker.NullLocator())
 
 
+def _rank_axes(ax, layer: str, title: str, intrinsic_rank, truncations: Sequence[int]) -> None:
+    """A rank-over-training panel's furniture: the intrinsic rank 2·d_a+1, the truncation steps,
+    the layer's title, axis labels, a log-2 rank axis and the legend."""
+    if intrinsic_rank is not None:
+        ax.axhline(intrinsic_rank, label=f"$2d_a+1$ = {intrinsic_rank}", **INTRINSIC_STYLE)
+    for i, step in enumerate(truncations):
+        ax.axvline(step, label="truncation" if i == 0 else None, **TRUNCATION_STYLE)
+    ax.set_title(f"{title}: {layer}" if title else layer)
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("rank")
+    _log2_axis(ax, "y")
+    ax.legend(loc="best")
+
+
 def _by_seed(df: pd.DataFrame, x: str, y: str) -> tuple[np.ndarray, np.ndarray]:
     """Pivot a `x, seed, y` table to (x values, seeds × x matrix), NaN where a seed lacks x."""
     table = df.pivot_table(index=x, columns="seed", values=y, aggfunc="mean").sort_index()
@@ -152,15 +166,7 @@ def rank_trajectories(
         for seed, rows in data.groupby("seed"):
             rows = rows.sort_values("step")
             ax.plot(rows["step"], rows["rank"], drawstyle="steps-post", label=f"seed {seed}")
-        if intrinsic_rank is not None:
-            ax.axhline(intrinsic_rank, label=f"$2d_a+1$ = {intrinsic_rank}", **INTRINSIC_STYLE)
-        for i, step in enumerate(truncations):
-            ax.axvline(step, label="truncation" if i == 0 else None, **TRUNCATION_STYLE)
-        ax.set_title(f"{title}: {layer}" if title else layer)
-        ax.set_xlabel("environment steps")
-        ax.set_ylabel("rank")
-        _log2_axis(ax, "y")
-        ax.legend(loc="best")
+        _rank_axes(ax, layer, title, intrinsic_rank, truncations)
     return fig
 
 
@@ -299,15 +305,7 @@ def rank_rule_ablation(
                 continue
             steps, values = _by_seed(data, "step", "rank")
             _band(ax, steps, values, rule, drawstyle="steps-post")
-        if intrinsic_rank is not None:
-            ax.axhline(intrinsic_rank, label=f"$2d_a+1$ = {intrinsic_rank}", **INTRINSIC_STYLE)
-        for i, step in enumerate(truncations):
-            ax.axvline(step, label="truncation" if i == 0 else None, **TRUNCATION_STYLE)
-        ax.set_title(f"{title}: {layer}" if title else layer)
-        ax.set_xlabel("environment steps")
-        ax.set_ylabel("rank")
-        _log2_axis(ax, "y")
-        ax.legend(loc="best")
+        _rank_axes(ax, layer, title, intrinsic_rank, truncations)
     return fig
 
 

@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from adarl import __version__
+from adarl.algos import registry
 from adarl.errors import UsageError, check_choice
 from adarl.evaluation import collect, compare, figures, selection, stats, tables
 from adarl.evaluation.runs import (
@@ -51,7 +52,7 @@ from adarl.evaluation.runs import (
     sort_tasks,
 )
 from adarl.train import provenance
-from adarl.train.io import checkpoint_dirs
+from adarl.train.run_folder import checkpoint_dirs
 
 REFERENCE = "adarl"
 FIXED_RANK = "sac-fixed-rank"
@@ -164,7 +165,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     if best_rnac:
         runs = [
             replace(r, label=f"{r.label} ({selection.RNAC_BEST_LABEL})")
-            if r.algo == selection.RNAC
+            if registry.keeps_best_policy(r.algo)
             else r
             for r in runs
         ]
@@ -174,7 +175,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     main = [r for r in runs if r.algo != FIXED_RANK] or fixed
     finals = {
         r.path: collect.best_scores(r)
-        if best_rnac and r.algo == selection.RNAC
+        if best_rnac and registry.keeps_best_policy(r.algo)
         else collect.final_scores(r)
         for r in runs
     }
@@ -340,7 +341,7 @@ def protocol_notes(
             f"{label}: {selection.PARSEVAL_NOTE.format(n=n)}; chosen coefficient: {picks}; "
             "every coefficient: tables/parseval.md."
         )
-    rnac = ", ".join(sort_methods(r.label for r in runs if r.algo == selection.RNAC))
+    rnac = ", ".join(sort_methods(r.label for r in runs if registry.keeps_best_policy(r.algo)))
     if rnac and options.rnac_checkpoint == "best":
         lines.append(f"{rnac}: {selection.RNAC_BEST_NOTE}.")
     elif rnac:

@@ -15,7 +15,7 @@ from pathlib import Path
 import yaml
 
 from adarl.errors import UsageError
-from adarl.train.io import checkpoint_dirs
+from adarl.train.run_folder import checkpoint_dirs
 
 CONFIG_FILE = "config.yaml"
 POLICY_PATTERN = re.compile(r"^policy_seed_(\d+)\.npz$")
@@ -122,16 +122,12 @@ def parse_seeds(value) -> list[int]:
         return [value]
     if isinstance(value, list | tuple):
         return [int(v) for v in value]
-    seeds: list[int] = []
+    from adarl.algos.flags import parse_int_list
+
     try:
-        for part in str(value).replace(" ", "").split(","):
-            if not part:
-                continue
-            lo, sep, hi = part.partition("-")
-            seeds.extend(range(int(lo), int(hi) + 1) if sep else [int(lo)])
+        return list(parse_int_list(str(value)))
     except ValueError:
         raise UsageError(f"seeds {value!r} are not a list like 0-4 or 0,2,5") from None
-    return seeds
 
 
 # ----------------------------------------------------------------------------- finding runs
@@ -188,10 +184,6 @@ def find_runs(paths: Iterable[str | os.PathLike]) -> list[Run]:
 
 
 # ----------------------------------------------------------------------------- method labels
-#: AdaRL's default rank rule: runs with it are labelled plain `adarl`.
-DEFAULT_RANK_RULE = "energy"
-
-
 def differing_fields(configs: Sequence[dict], ignore: Collection[str] = ()) -> list[str]:
     """Flattened config keys whose values differ between `configs`, launch fields and fields
     named in `ignore` (by their last component) aside; sorted."""
@@ -205,20 +197,14 @@ def differing_fields(configs: Sequence[dict], ignore: Collection[str] = ()) -> l
 
 
 def method_label(config: dict) -> str:
-    """The name a run's method has in tables and legends: the algo, plus the setting that makes
-    a variant (the rank of `sac-fixed-rank`, a non-default rank rule or the retain clause's
-    tolerance of `adarl`)."""
-    algo = str(config_value(config, "algo"))
-    if algo == "sac-fixed-rank":
-        rank = config_value(config, "rank")
-        return f"sac-fixed-rank r={rank}" if rank is not None else algo
-    if algo == "adarl":
-        rule = str(config_value(config, "rank_rule", "cumulative"))  # older runs: Eq. 5
-        tolerance = config_value(config, "retain_tolerance")
-        parts = [] if rule == DEFAULT_RANK_RULE else [f"{rule} rule"]
-        parts += [] if tolerance is None else [f"retain {float(tolerance):g}"]
-        return f"adarl ({', '.join(parts)})" if parts else algo
-    return algo
+    """The name a run's method has in tables and legends: the algo, plus what makes a variant
+    (the algorithm registry's `report_label`: the rank of `sac-fixed-rank`, a non-default rank
+    rule or the retain clause's tolerance of `adarl`)."""
+    from adarl.algos import registry
+
+    return registry.report_label(
+        config, lambda key, default=None: config_value(config, key, default)
+    )
 
 
 def label_runs(runs: list[Run]) -> list[Run]:

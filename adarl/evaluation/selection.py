@@ -22,7 +22,6 @@ from adarl.evaluation.runs import Run, config_value, differing_fields, sort_task
 PARSEVAL = "sac-parseval"
 COEF = "parseval_coef"
 PARSEVAL_NOTE = "best of {n} coefficients (selected on the reported metric, as in the paper)"
-RNAC = "rnac"
 RNAC_CHECKPOINTS = ("final", "best")
 RNAC_BEST_LABEL = "best checkpoint"
 RNAC_BEST_NOTE = (

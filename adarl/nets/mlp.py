@@ -8,7 +8,7 @@ A network is a list of layer dicts plus a static `layout` (a tuple of layer kind
   i.e. the weight W = W1·W2 with no bias or activation between (paper appendix, Fig. 7). Its
   0/1 rank mask lives outside the parameters (see `adarl.nets.rank`).
 * `("sparse", n)`: `{"d": (n, n)}`, one ISTA step of sparse coding (Tiwari et al. reconstruction,
-  see docs/baselines.md); it carries its own ReLU and is not followed by the activation.
+  see docs/algorithms.md); it carries its own ReLU and is not followed by the activation.
 
 An activation follows every dense/bottleneck layer except the last when `final_activation` is
 False. Weights are stored (in, out) so a layer is `x @ w + b`.
@@ -59,8 +59,9 @@ def _torch_uniform(rng: np.random.Generator, shape, fan_in):
     return rng.uniform(-bound, bound, size=shape).astype(np.float32)
 
 
-def _orthogonal(rng: np.random.Generator, shape, gain):
-    """Orthogonal matrix (rows or columns orthonormal) times `gain`, as torch.nn.init.orthogonal_."""
+def orthogonal(rng: np.random.Generator, shape, gain):
+    """Orthogonal matrix (Saxe et al. 2014; rows or columns orthonormal) times `gain`, as
+    torch.nn.init.orthogonal_: Q of the QR of a Gaussian matrix, signs fixed by diag(R)."""
     rows, cols = shape
     a = rng.normal(size=(max(rows, cols), min(rows, cols)))
     q, r = np.linalg.qr(a)
@@ -98,7 +99,7 @@ def init_layers(
                 w = _torch_uniform(rng, (n_in, n_out), n_in)
                 b = _torch_uniform(rng, (n_out,), n_in)
             else:
-                w = _orthogonal(rng, (n_in, n_out), g)
+                w = orthogonal(rng, (n_in, n_out), g)
                 b = np.zeros((n_out,), np.float32)
             params.append({"w": w, "b": b})
         elif spec[0] == "bottleneck":
@@ -109,8 +110,8 @@ def init_layers(
                 w2 = _torch_uniform(rng, (width, n_out), r)
                 b = _torch_uniform(rng, (n_out,), r)
             else:  # orthogonal product with the layer's gain, split evenly between the factors
-                w1 = _orthogonal(rng, (n_in, width), g**0.5)
-                w2 = _orthogonal(rng, (width, n_out), g**0.5)
+                w1 = orthogonal(rng, (n_in, width), g**0.5)
+                w2 = orthogonal(rng, (width, n_out), g**0.5)
                 b = np.zeros((n_out,), np.float32)
             keep = (np.arange(width) < r).astype(np.float32)
             params.append({"w1": w1 * keep[None, :], "w2": w2 * keep[:, None], "b": b})

@@ -59,7 +59,7 @@ def echo(line: str) -> None:
 # ----------------------------------------------------------------------------- plan
 def unit_state(out: Path, unit: Unit) -> str:
     """What running `unit` would do now: 'done', 'resume from step N' or 'start'."""
-    from adarl.train.io import checkpoint_dirs
+    from adarl.train.run_folder import checkpoint_dirs
 
     run_dir = out / unit.id
     if (run_dir / "DONE").exists():
@@ -87,7 +87,7 @@ def plan_text(sweep: Sweep, out: Path, where: str) -> str:
 def check_existing_runs(sweep: Sweep, out: Path) -> None:
     """A one-line UsageError if a unit's run folder already holds a run trained with other
     settings (the manifest aside, a sweep never resumes or skips someone else's run)."""
-    from adarl.cli.train import config_from_run
+    from adarl.train.run_folder import config_from_run
 
     for unit in sweep.units:
         run_dir = out / unit.id

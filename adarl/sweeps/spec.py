@@ -8,8 +8,6 @@ one-line `UsageError`, before anything starts. The format is documented in docs/
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,7 +104,7 @@ def load(spec: str) -> Sweep:
 def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
     """Check a spec already read from YAML and expand it into units."""
     from adarl import envs
-    from adarl.algos import ALGOS
+    from adarl.algos.registry import ALGOS
 
     where = source
     if not isinstance(doc, dict):
@@ -115,7 +113,7 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
     for key in REQUIRED_KEYS:
         if key not in doc:
             raise UsageError(f"{where}: missing key {key!r} (required: {', '.join(REQUIRED_KEYS)})")
-    fields = _family_fields()
+    fields = _algo_fields()
     all_fields = set().union(*fields.values())
 
     name = _name(doc.get("name", default_name), f"{where}: name")
@@ -138,11 +136,11 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
     base.update(evaluation)
     overrides = _overrides(doc.get("overrides"), f"{where}: overrides", all_fields)
     entries = _algo_entries(doc["algos"], where, fields, ALGOS)
-    presets = _family_presets()
+    presets = _algo_presets()
     preset = doc.get("preset")
     if preset is not None:
         preset = _string(preset, f"{where}: preset")
-        known = sorted({p for family in presets.values() for p in family})
+        known = sorted({p for names in presets.values() for p in names})
         if preset not in known:
             raise UsageError(f"{where}: unknown preset {preset!r}; allowed: {', '.join(known)}")
 
@@ -150,13 +148,13 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
     units = []
     for task, task_overrides in tasks.items():
         for entry in entries:
-            family_fields = fields[_family(entry["algo"])]
+            algo_fields = fields[entry["algo"]]
             values = dict(base)
-            values.update({k: v for k, v in overrides.items() if k in family_fields})
-            values.update({k: v for k, v in task_overrides.items() if k in family_fields})
+            values.update({k: v for k, v in overrides.items() if k in algo_fields})
+            values.update({k: v for k, v in task_overrides.items() if k in algo_fields})
             values.update(entry["fields"])
             # the file's preset reaches the entries without their own, where the algorithm has it
-            family_preset = preset if preset in presets[_family(entry["algo"])] else None
+            algo_preset = preset if preset in presets[entry["algo"]] else None
             for seed_group in groups:
                 units.append(
                     _unit(
@@ -164,7 +162,7 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
                         entry,
                         seed_group,
                         budget[task],
-                        entry["preset"] or family_preset,
+                        entry["preset"] or algo_preset,
                         values,
                         where,
                         envs,
@@ -218,35 +216,35 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
 
 
 def build_config(train_args: list[str]):
-    """The config `adarl train *train_args` would train (raises the trainer's UsageError)."""
-    from adarl.cli import train
+    """The config `adarl train *train_args` would train (raises the trainer's UsageError).
+    `train_args` are `--name value` pairs, as a unit's `train_args`; a later pair wins."""
+    from adarl.algos import registry
 
-    parser = _RaisingParser(prog="adarl train", add_help=False)
-    train.add_arguments(parser)
-    return train.build_config(parser.parse_args(train_args))[1]
-
-
-class _RaisingParser(argparse.ArgumentParser):
-    def error(self, message):  # noqa: D102
-        raise UsageError(message)
+    if len(train_args) % 2:
+        raise UsageError(f"flags come in --name value pairs, got {' '.join(train_args)!r}")
+    algo, preset, flags = "adarl", None, {}
+    for flag, text in zip(train_args[::2], train_args[1::2]):
+        name = flag.removeprefix("--").replace("-", "_")
+        if name == "algo":
+            algo = text
+        elif name == "preset":
+            preset = text
+        else:
+            flags[name] = text
+    return registry.resolve_config(algo, preset, flags)
 
 
 # ----------------------------------------------------------------------------- pieces
-def _family(algo: str) -> str:
-    return "rnac" if algo == "rnac" else "sac"
+def _algo_fields() -> dict[str, set[str]]:
+    from adarl.algos import registry
+
+    return {algo: registry.field_names(algo) for algo in registry.ALGOS}
 
 
-def _family_fields() -> dict[str, set[str]]:
-    from adarl.algos import rnac, sac
+def _algo_presets() -> dict[str, set[str]]:
+    from adarl.algos import registry
 
-    classes = {"sac": sac.SACConfig, "rnac": rnac.RNACConfig}
-    return {family: {f.name for f in dataclasses.fields(cls)} for family, cls in classes.items()}
-
-
-def _family_presets() -> dict[str, set[str]]:
-    from adarl.algos import rnac, sac
-
-    return {"sac": set(sac.PRESETS), "rnac": set(rnac.PRESETS)}
+    return {algo: set(entry.presets) for algo, entry in registry.ALGORITHMS.items()}
 
 
 def _check_keys(mapping: dict, allowed, where: str) -> None:
@@ -301,7 +299,7 @@ def _check_field(key, allowed: set[str], where: str, algo: str | None = None) ->
 
 
 def _seeds(value, where: str) -> tuple[int, ...]:
-    from adarl.cli.train import parse_int_list
+    from adarl.algos.flags import parse_int_list
 
     if _is_int(value):
         value = [value]
@@ -392,7 +390,7 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
     except UsageError as exc:
         raise UsageError(f"{where}: {exc}") from None
     here = f"{where}: algos entry {algo!r}"
-    allowed = fields[_family(algo)]
+    allowed = fields[algo]
     settings = {k: v for k, v in item.items() if k not in ENTRY_KEYS}
     for key in settings:
         _check_field(key, allowed, here, algo)

@@ -5,8 +5,9 @@ of `adarl.algos.sac` is `vmap`ped over seeds, so all seeds advance in lock-step.
 the environments, collects `update_every` transitions per seed, then makes one jitted call that
 appends them to the device buffers and runs `update_every` gradient steps (`lax.scan`).
 
-The seeds are split into `lanes` (two by default), each with its own vmapped state. JAX runs a
-lane's update asynchronously while the host steps the next lane's environments, so on a 2-core
+The seeds are split into `lanes` (default 4, at most one per seed), each with its own vmapped
+state. JAX runs a lane's update asynchronously while the host steps the next lane's
+environments, so on a 2-core
 machine the simulator and the learner overlap. Exploration actions are sampled on the host
 (`NumpyPolicy.sample`, noise from each seed's NumPy generator) from a copy of the lane's actor
 taken after its update, so stepping a lane never waits behind another lane's update. Every seed
@@ -31,13 +32,11 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-import yaml
 
-from adarl import __version__
-from adarl.algos import sac
+from adarl.algos import replay, sac
 from adarl.errors import UsageError
-from adarl.train import buffer as replay
 from adarl.train import io
+from adarl.train import run_folder as rf
 
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
@@ -114,14 +113,6 @@ class Lane:
     builder: replay.ChunkBuilder
     infos: list = dataclasses.field(default_factory=list)  # update metrics not yet logged
     actors: list | None = None  # host copies of the current policies; None = stale
-
-
-def config_to_yaml(config, extra: dict | None = None) -> str:
-    values = {
-        k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()
-    }
-    values.update(extra or {})
-    return yaml.safe_dump(values, sort_keys=False)
 
 
 class Run:
@@ -258,13 +249,9 @@ class Run:
         self.ep_return = arrays["host/ep_return"].copy()
         self.ep_length = arrays["host/ep_length"].copy()
         self.step = int(meta["step"])
-        self.np_rngs = []
-        for s, rng_state in zip(self.seeds, meta["np_rngs"]):
-            rng = np.random.default_rng(s)
-            rng.bit_generator.state = rng_state
-            self.np_rngs.append(rng)
+        self.np_rngs = rf.restore_rngs(meta, self.seeds)
         for env, env_state in zip(self.envs, meta["env_states"]):
-            env.set_state(_from_json(env_state))
+            env.set_state(rf.decode_env_state(env_state, arrays))
 
     # ------------------------------------------------------------------ logs
     def open_logs(self, offsets: dict | None) -> None:
@@ -272,22 +259,19 @@ class Run:
         if offsets:
             for name, offset in offsets.items():
                 io.CsvLog.truncate(d / name, offset)
-        params = self.param_columns()
         extra = []
         if self.config.parseval_coef > 0:
             extra.append("parseval_penalty")
         if self.config.sparse_width:
             extra.append("active_fraction")
         self.logs = {
-            "episodes.csv": io.CsvLog(
-                d / "episodes.csv", ["step", "seed", "episode", "return", "length", *params]
+            rf.EPISODES_CSV: io.CsvLog(
+                d / rf.EPISODES_CSV, rf.episode_columns(self.envs[0].dynamics_params or {})
             ),
-            "train.csv": io.CsvLog(
-                d / "train.csv", BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
+            rf.TRAIN_CSV: io.CsvLog(
+                d / rf.TRAIN_CSV, BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
             ),
-            "eval.csv": io.CsvLog(
-                d / "eval.csv", ["step", "seed", "dynamics", "episode", "return", "length"]
-            ),
+            rf.EVAL_CSV: io.CsvLog(d / rf.EVAL_CSV, rf.EVAL_COLUMNS),
         }
         if self.config.adapt_rank:
             path = d / "truncations.csv"
@@ -300,9 +284,6 @@ class Run:
             self.logs["truncations.csv"] = io.CsvLog(path, columns)
         self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets else None)
         self.recent_returns, self.last_eval = [], {}
-
-    def param_columns(self) -> list[str]:
-        return [f"p_{k}" for k in (self.envs[0].dynamics_params or {})]
 
     def close_logs(self) -> None:
         for log in self.logs.values():
@@ -358,8 +339,8 @@ class Run:
                     "length": int(self.ep_length[i]),
                 }
                 row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
-                self.logs["episodes.csv"].write(row)
-                self.tb.write(t, {f"episode/return/seed{self.seeds[i]}": self.ep_return[i]})
+                self.logs[rf.EPISODES_CSV].write(row)
+                self.tb.write(t, {rf.tb_episode_return(self.seeds[i]): self.ep_return[i]})
                 self.recent_returns.append(float(self.ep_return[i]))
                 if not math.isfinite(self.ep_return[i]):
                     self.watch.note("episode return", [self.seeds[i]])
@@ -487,9 +468,9 @@ class Run:
             rows.append(row)
             self.tb.write(
                 self.step,
-                {f"train/{k}/seed{seed}": v for k, v in row.items() if k not in ("step", "seed")},
+                {rf.tb_train(k, seed): v for k, v in row.items() if k not in ("step", "seed")},
             )
-        self.logs["train.csv"].write(rows)
+        self.logs[rf.TRAIN_CSV].write(rows)
 
     def export_policies(self) -> list[dict]:
         actor = self.gather(lambda s: s["actor"])
@@ -499,7 +480,7 @@ class Run:
         ]
 
     def evaluate(self) -> None:
-        from adarl.evaluation.rollout import run_episodes
+        from adarl.envs.rollout import run_episodes
         from adarl.policy import NumpyPolicy
 
         c = self.config
@@ -516,7 +497,7 @@ class Run:
                     physics=c.physics,
                     version=c.model_version,
                 )
-                self.logs["eval.csv"].write(
+                self.logs[rf.EVAL_CSV].write(
                     [
                         {
                             "step": self.step,
@@ -530,29 +511,30 @@ class Run:
                     ]
                 )
                 mean_return = float(np.mean([r["return"] for r in rows]))
-                self.tb.write(self.step, {f"eval/{label}/return/seed{self.seeds[i]}": mean_return})
+                self.tb.write(self.step, {rf.tb_eval_return(label, self.seeds[i]): mean_return})
                 self.last_eval[self.seeds[i]] = mean_return
 
     def save(self) -> None:
         from adarl.policy import to_bytes
 
-        meta = {
-            "algo": self.config.algo,
-            "seeds": self.seeds,
-            "np_rngs": [rng.bit_generator.state for rng in self.np_rngs],
-            "env_states": [_to_json(env.get_state()) for env in self.envs],
-            "csv_offsets": {name: log.offset() for name, log in self.logs.items()},
-            "bottleneck_widths": sac.bottleneck_widths(self.spec),
-            "config": io.config_record(self.config),
-        }
+        arrays = self.checkpoint_arrays()
+        meta = rf.checkpoint_meta(
+            self.config.algo,
+            self.config,
+            self.seeds,
+            self.np_rngs,
+            rf.encode_env_states(self.envs, arrays),
+            {name: log.offset() for name, log in self.logs.items()},
+        )
+        meta["bottleneck_widths"] = sac.bottleneck_widths(self.spec)
         policies = {
             f"policy_seed_{seed}.npz": to_bytes(arrays)
             for seed, arrays in zip(self.seeds, self.export_policies())
         }
-        io.save_checkpoint(
+        rf.save_checkpoint(
             self.run_dir,
             self.step,
-            self.checkpoint_arrays(),
+            arrays,
             meta,
             keep=self.config.keep_checkpoints,
             files=policies,
@@ -597,7 +579,7 @@ class Run:
                 bar.update(t - bar.n)
         if bar is not None:
             bar.close()
-        io.atomic_write_text(self.run_dir / "DONE", f"{self.step}\n")
+        rf.finish(self.run_dir, self.step)
 
 
 def truncation_decision(old_rank: int, candidate_rank: int, new_rank: int) -> str:
@@ -645,30 +627,6 @@ def _progress(total: int, start: int, enabled: bool):
     )
 
 
-def _to_json(value):
-    if isinstance(value, dict):
-        return {k: _to_json(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_to_json(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return {"__ndarray__": value.tolist(), "dtype": str(value.dtype)}
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.floating):
-        return float(value)
-    return value
-
-
-def _from_json(value):
-    if isinstance(value, dict):
-        if "__ndarray__" in value:
-            return np.asarray(value["__ndarray__"], dtype=value["dtype"])
-        return {k: _from_json(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_from_json(v) for v in value]
-    return value
-
-
 def train(
     config: sac.SACConfig,
     run_dir: str | Path,
@@ -686,39 +644,26 @@ def train(
 
 def _train(config, run_dir: Path, resume: bool, progress: bool, command: str, lock) -> None:
     if resume:
-        io.check_resume_dir(run_dir)
-        lock.acquire(new=False)
-        run = Run(config, run_dir, progress)
-        if (run_dir / "DONE").exists():
-            print(f"run {run_dir} is already complete", file=sys.stderr)
+        opened = rf.open_to_resume(run_dir, lock, config)
+        if opened is None:  # complete
             return
-        loaded = io.load_latest_intact(run_dir)
-        if loaded:
-            _, arrays, meta = loaded
-            io.check_resume_config(run_dir, meta, config)
+        run = Run(config, run_dir, progress)
+        _, arrays, meta = opened
+        if meta is not None:
             run.restore(arrays, meta)
-            run.open_logs(meta["csv_offsets"])
+            run.open_logs(rf.csv_offsets(meta))
         else:  # killed before its first checkpoint: start again, keeping nothing half-done
             run.fresh()
             run.open_logs(
-                {name: 0 for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")}
+                {
+                    name: 0
+                    for name in (rf.EPISODES_CSV, rf.TRAIN_CSV, rf.EVAL_CSV, "truncations.csv")
+                }
             )
     else:
         io.check_new_run_dir(run_dir)
         run = Run(config, run_dir, progress)
-        lock.acquire(new=True)
-        io.atomic_write_text(
-            run_dir / "config.yaml",
-            config_to_yaml(
-                config,
-                {
-                    "format_version": io.RUN_FORMAT_VERSION,
-                    "adarl_version": __version__,
-                    "command": command,
-                },
-            ),
-        )
-        io.write_environment(run_dir)
+        rf.start_new(run_dir, lock, config, config.algo, command)
         run.fresh()
         run.open_logs(None)
         if config.adapt_rank and sac.n_truncations(config) == 0:
@@ -731,26 +676,3 @@ def _train(config, run_dir: Path, resume: bool, progress: bool, command: str, lo
         run.loop()
     finally:
         run.close_logs()
-
-
-def load_run_config(run_dir: str | Path) -> dict:
-    """Read and check a run folder's config.yaml (one-line errors for anything wrong)."""
-    run_dir = Path(run_dir)
-    if not run_dir.is_dir():
-        raise UsageError(f"run folder {run_dir} does not exist")
-    path = run_dir / "config.yaml"
-    if not path.exists():
-        raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
-    try:
-        values = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise UsageError(f"{path} is not valid YAML ({exc.__class__.__name__})") from exc
-    if not isinstance(values, dict):
-        raise UsageError(f"{path} is not a run config")
-    version = values.get("format_version")
-    if version != io.RUN_FORMAT_VERSION:
-        raise UsageError(
-            f"{run_dir} was written with run format {version!r}; this adarl "
-            f"({__version__}) reads format {io.RUN_FORMAT_VERSION}"
-        )
-    return values

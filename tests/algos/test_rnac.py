@@ -1,10 +1,9 @@
-"""RNAC (adarl.algos.rnac): the maths against NumPy references, the double-sampling simulator,
-a short run with checkpoint and exact resume, and bad input."""
+"""RNAC's maths (adarl.algos.rnac) against NumPy references, and bad configs (the loop:
+tests/train/test_rnac_loop.py)."""
 
 from __future__ import annotations
 
 import dataclasses
-import shutil
 
 import jax
 import jax.numpy as jnp
@@ -13,7 +12,6 @@ import pytest
 
 from adarl.algos import rnac
 from adarl.errors import UsageError
-from adarl.train.io import read_csv
 
 # jitted once: eager JAX compiles every primitive separately, which is slow on 2 shared cores
 gae = jax.jit(rnac.gae)
@@ -118,196 +116,6 @@ def test_worst_case_selection_picks_the_lowest_valued_candidate():
     )
 
 
-# ----------------------------------------------------------------------------- double sampling
-@pytest.mark.parametrize("task", ["hopper", "walker2d", "ant", "humanoid"])
-def test_state_copy_round_trip(task):
-    """Candidates come from the real env's exact state under the current episode's model: the
-    real env stepping with a candidate's action lands bit-exactly on that candidate."""
-    from adarl.envs import make
-
-    env = make(task, dynamics="paper", seed=0)
-    shadow = rnac.ShadowSimulator(env)
-    rng = np.random.default_rng(0)
-    low, high = env.action_space.low, env.action_space.high
-    models = set()
-    for episode in range(3):  # paper dynamics: a new model every episode
-        env.reset()
-        models.add(id(env.unwrapped.model))
-        for _ in range(3):
-            env.step(rng.uniform(low, high).astype(np.float32))
-        before = env.get_state()
-        actions = rng.uniform(low, high, (3, low.size)).astype(np.float32)
-        cand = shadow.candidates(actions)
-        after = env.get_state()  # the real env is untouched
-        np.testing.assert_array_equal(before["mj_state"], after["mj_state"])
-        obs, *_ = env.step(actions[episode])
-        np.testing.assert_array_equal(obs, cand[episode])
-        assert not np.array_equal(cand[0], cand[1])
-    assert len(models) == 3
-    env.close()
-
-
-# ----------------------------------------------------------------------------- a short run
-def _config(**kw) -> rnac.RNACConfig:
-    # the first checkpoint (640) falls inside a rollout (256 steps): its buffer is checkpointed
-    base = dict(
-        rnac.PRESETS["smoke"], total_steps=1024, checkpoint_every=640, eval_every=512, log_every=256
-    )
-    return rnac.RNACConfig(**{**base, **kw})
-
-
-def _rows(run, name, seed=None):
-    rows = read_csv(run / f"{name}.csv")
-    for r in rows:
-        r.pop("steps_per_s", None)
-    return [r for r in rows if seed is None or r["seed"] == str(seed)]
-
-
-def test_run_checkpoint_and_exact_resume(tmp_path):
-    config = _config(seeds=(0, 1))
-    full = tmp_path / "full"
-    rnac.train(config, full)
-    assert (full / "DONE").read_text().strip() == "1024"
-    ckpts = sorted(p.name for p in (full / "checkpoints").iterdir())
-    assert ckpts == ["step_000000000640", "step_000000001024"]
-    for name in ("episodes", "train", "eval"):
-        assert _rows(full, name), name
-    assert {r["step"] for r in _rows(full, "train")} == {str(256 * k) for k in range(1, 5)}
-    assert len(_rows(full, "eval")) == 2 * 2  # 2 evaluations × 2 seeds × 1 episode
-    assert float(_rows(full, "train")[-1]["loss_v"]) > 0
-
-    # the policy file is the trained deterministic policy: normalise, tanh MLP, c + h·tanh(mean)
-    from adarl.policy import load
-    from adarl.train.io import load_checkpoint, unflatten_tree
-
-    arrays, _ = load_checkpoint(full / "checkpoints/step_000000001024")
-    state = unflatten_tree(rnac.init_states([0, 1], config, 11, 3)[0], arrays, "state")
-    actor = jax.tree.map(lambda x: np.asarray(x[1]), state.actor)
-    count, m2 = arrays["host/obs_count"][1], arrays["host/obs_m2"][1]
-    obs = np.random.default_rng(5).standard_normal((4, 11))
-    norm = rnac.normalise_obs(obs, arrays["host/obs_mean"][1], m2 / count, config.obs_clip)
-    expected = rnac.actor_mean(actor, norm, -np.ones(3), np.ones(3), np)
-    policy = load(full / "checkpoints/step_000000001024/policy_seed_1.npz")
-    np.testing.assert_allclose(policy(obs), expected, rtol=1e-5, atol=1e-6)
-    before = (full / "train.csv").read_bytes()
-    rnac.train(config, full, resume=True)  # a finished run: nothing to do
-    assert (full / "train.csv").read_bytes() == before
-
-    # kill after the first checkpoint: later checkpoint, DONE and half a CSV line are lost
-    cut = tmp_path / "cut"
-    shutil.copytree(full, cut)
-    shutil.rmtree(cut / "checkpoints/step_000000001024")
-    (cut / "DONE").unlink()
-    with open(cut / "episodes.csv", "a") as f:
-        f.write("1000,0,99,12.")
-    # resumed with candidates simulated at every step (the original's way): same transitions
-    rnac.train(dataclasses.replace(config, eager_candidates=True), cut, resume=True)
-    for name in ("episodes", "train", "eval"):
-        assert _rows(cut, name) == _rows(full, name), name
-    with (
-        np.load(full / "checkpoints/step_000000001024/arrays.npz") as a,
-        np.load(cut / "checkpoints/step_000000001024/arrays.npz") as b,
-    ):
-        assert a.files == b.files
-        for key in a.files:
-            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
-
-
-# ----------------------------------------------------------------------------- best checkpoint
-def _best(checkpoint):
-    import json
-
-    return json.loads((checkpoint / "meta.json").read_text())["best"]
-
-
-def _policy_arrays(path):
-    with np.load(path) as z:
-        return {k: z[k] for k in z.files}
-
-
-def test_best_checkpoint_is_kept_and_resume_exact(tmp_path):
-    """Each seed's best policy by mean nominal evaluation return is kept beside the final one:
-    its record matches eval.csv, its file scores what was recorded, and a resumed run takes the
-    best from its checkpoint, so it ends with the same record and arrays."""
-    import json
-
-    from adarl.evaluation.rollout import run_episodes
-    from adarl.policy import load
-
-    config = _config(seeds=(0, 1))
-    full, last, first = (
-        tmp_path / "full",
-        "checkpoints/step_000000001024",
-        "checkpoints/step_000000000640",
-    )
-    rnac.train(config, full, progress=False)
-    record = _best(full / last)
-    assert record["metric"] == "mean nominal evaluation return"
-    assert _best(full / first)["seeds"].keys() == {"0", "1"}  # from the evaluation at 512
-    evals = [r for r in _rows(full, "eval") if r["dynamics"] == "nominal"]
-    for s in (0, 1):
-        mine = [r for r in evals if r["seed"] == str(s)]  # one episode per evaluation
-        top = max(mine, key=lambda r: float(r["return"]))  # the first maximum: ties keep it
-        best = record["seeds"][str(s)]
-        assert best["step"] == int(top["step"])
-        assert best["return"] == pytest.approx(float(top["return"]), rel=1e-5)
-        policy = load(full / last / f"best_policy_seed_{s}.npz")
-        assert (
-            run_episodes(policy, "hopper", "nominal", 1, 1_000_000 + s)[0]["return"]
-            == best["return"]
-        )
-        assert (full / last / f"policy_seed_{s}.npz").is_file()  # the final one stays
-
-    # killed after the first checkpoint and resumed: the same best record and arrays
-    cut = tmp_path / "cut"
-    shutil.copytree(full, cut)
-    shutil.rmtree(cut / last)
-    (cut / "DONE").unlink()
-    forged = tmp_path / "forged"
-    shutil.copytree(cut, forged)
-    rnac.train(config, cut, resume=True, progress=False)
-    assert _best(cut / last) == record
-    for s in (0, 1):
-        a = _policy_arrays(full / last / f"best_policy_seed_{s}.npz")
-        b = _policy_arrays(cut / last / f"best_policy_seed_{s}.npz")
-        assert a.keys() == b.keys()
-        for key in a:
-            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
-
-    # the best comes from the checkpoint, not from a recount: an unbeatable record survives
-    meta = json.loads((forged / first / "meta.json").read_text())
-    meta["best"]["seeds"]["0"]["return"] = 1e9
-    (forged / first / "meta.json").write_text(json.dumps(meta))
-    rnac.train(config, forged, resume=True, progress=False)
-    assert _best(forged / last)["seeds"]["0"] == {"step": 512, "return": 1e9}
-    assert _best(forged / last)["seeds"]["1"] == record["seeds"]["1"]
-    kept = _policy_arrays(forged / last / "best_policy_seed_0.npz")
-    for key, value in _policy_arrays(forged / first / "best_policy_seed_0.npz").items():
-        np.testing.assert_array_equal(kept[key], value, err_msg=key)
-
-    # a checkpoint whose best policy file is missing: one line, no resume
-    (forged / "DONE").unlink()
-    shutil.rmtree(forged / last)
-    (forged / first / "best_policy_seed_1.npz").unlink()
-    with pytest.raises(UsageError, match="has no best_policy_seed_1.npz") as err:
-        rnac.train(config, forged, resume=True, progress=False)
-    assert "\n" not in str(err.value)
-
-
-def test_ipm_run_and_seed_grouping(tmp_path):
-    """IPM trains too; a seed trained alone logs what it logs when trained with others."""
-    alone = tmp_path / "alone"
-    rnac.train(_config(seeds=(1,), uncertainty_set="ipm", total_steps=512), alone)
-    group = tmp_path / "group"
-    rnac.train(_config(seeds=(0, 1), uncertainty_set="ipm", total_steps=512), group)
-    import yaml
-
-    doc = yaml.safe_load((group / "config.yaml").read_text())
-    assert doc["algo"] == "rnac" and doc["uncertainty_set"] == "ipm" and doc["seeds"] == [0, 1]
-    for name in ("episodes", "train", "eval"):
-        assert _rows(alone, name) == _rows(group, name, seed=1), name
-
-
 # ----------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize(
     "change, words",
@@ -329,19 +137,9 @@ def test_bad_config_raises_one_line_usage_error(change, words):
     assert "\n" not in str(err.value)
 
 
-def test_bad_run_folder(tmp_path):
-    with pytest.raises(UsageError, match="not a run folder"):
-        rnac.train(_config(), tmp_path / "missing", resume=True)
-    (tmp_path / "used").mkdir()
-    (tmp_path / "used" / "notes.txt").write_text("mine\n")
-    with pytest.raises(UsageError, match="not empty"):
-        rnac.train(_config(), tmp_path / "used")
-    assert (tmp_path / "used" / "notes.txt").read_text() == "mine\n"
-    with pytest.raises(UsageError):
-        rnac.train(_config(task="cartpole"), tmp_path / "new")
-
-
 def test_presets_are_valid_configs():
-    assert rnac.CONFIG_CLASS is rnac.RNACConfig
+    from adarl.algos import registry
+
+    assert registry.get("rnac").config_class is rnac.RNACConfig
     for name, overrides in rnac.PRESETS.items():
         rnac.RNACConfig(**overrides).validate(), name

@@ -8,10 +8,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from adarl.algos import SAC_FAMILY, sac
+from adarl.algos import SAC_FAMILY, replay, sac
 from adarl.nets import mlp, rank
 from adarl.nets.regularisers import parseval_penalty
-from adarl.train import buffer as replay
 
 OBS, ACT = 5, 2
 
@@ -460,3 +459,88 @@ def test_learning_rate_follows_the_chosen_schedule(schedule):
         assert lr(10_000, 0, 0) == pytest.approx(c.lr_actor)  # constant before the first cut
         assert lr(10_000, 10_000, 2) == 0.0
         assert lr(15_000, 10_000, 2) == pytest.approx(c.lr_actor * c.lr_min_ratio)  # iteration end
+
+
+# ----------------------------------------------------------------------------- one whole update
+def _np_tree(tree):
+    return jax.tree_util.tree_map(np.asarray, tree)
+
+
+def _np_adam_first_step(params, grads, lr):
+    """The first step of Adam (zero moments, β = (0.9, 0.999), ε = 1e-8), in NumPy: the bias
+    corrections make m̂ = g and v̂ = g², so θ ← θ − lr·g / (|g| + ε)."""
+    return jax.tree_util.tree_map(
+        lambda p, g: np.asarray(p) - lr * np.asarray(g) / (np.abs(np.asarray(g)) + 1e-8),
+        params,
+        grads,
+    )
+
+
+def test_update_step_matches_numpy_with_a_distinct_target_critic():
+    """One `update_step` against NumPy: the critic loss uses the *target* critic (perturbed
+    here, so that it differs from the online one), the critic takes an Adam step, the actor's loss
+    uses the just-updated critic (Spinning Up's order), and the target moves by Polyak averaging
+    θ̄ ← ρθ̄ + (1 − ρ)θ towards the new critic."""
+    spec, state = make("sac")
+    state = filled_state(spec, state)
+    rng = np.random.default_rng(3)
+    state["critic_target"] = jax.tree_util.tree_map(
+        lambda a: np.asarray(a) + 0.3 * rng.normal(size=np.shape(a)).astype(np.float32),
+        _np_tree(state["critic"]),
+    )
+    new, info = jax.jit(functools.partial(sac.update_step, spec))(state)
+    c = spec.config
+    _, k_batch, k_critic, k_actor = jax.random.split(state["key"], 4)
+    batch = _np_tree(replay.sample(state["buffer"], k_batch, c.batch_size))
+    low, high = np.array([-1.0, -2.0]), np.array([1.0, 2.0])
+    n = c.batch_size
+
+    # the critic's loss: y from the target critic
+    a2, logp2 = np_sample(state["actor"], batch["next_obs"], noise_of(k_critic, n), low, high)
+    q_targ = np.minimum(*(np_q(state["critic_target"], j, batch["next_obs"], a2) for j in (0, 1)))
+    y = batch["rew"] + c.gamma * (1 - batch["done"]) * (q_targ - c.alpha * logp2)
+    q_loss = sum(
+        np.mean((np_q(state["critic"], j, batch["obs"], batch["act"]) - y) ** 2) for j in (0, 1)
+    )
+    assert float(info["loss_q"]) == pytest.approx(q_loss, rel=1e-4)
+
+    # the critic's Adam step
+    q_grads = jax.grad(sac.critic_loss, argnums=1, has_aux=True)(
+        spec, state["critic"], state, batch, k_critic
+    )[0]
+    expected_critic = _np_adam_first_step(state["critic"], q_grads, c.lr_critic)
+    for got, want in zip(
+        jax.tree_util.tree_leaves(new["critic"]), jax.tree_util.tree_leaves(expected_critic)
+    ):
+        np.testing.assert_allclose(np.asarray(got), want, rtol=1e-5, atol=1e-6)
+
+    # the actor's loss, against the updated critic
+    a, logp = np_sample(state["actor"], batch["obs"], noise_of(k_actor, n), low, high)
+    q = np.minimum(*(np_q(_np_tree(new["critic"]), j, batch["obs"], a) for j in (0, 1)))
+    assert float(info["loss_pi"]) == pytest.approx(np.mean(c.alpha * logp - q), rel=1e-4)
+
+    # Polyak averaging towards the new critic
+    for target, old, online in zip(
+        jax.tree_util.tree_leaves(new["critic_target"]),
+        jax.tree_util.tree_leaves(state["critic_target"]),
+        jax.tree_util.tree_leaves(new["critic"]),
+    ):
+        expected = c.polyak * np.asarray(old) + (1 - c.polyak) * np.asarray(online)
+        np.testing.assert_allclose(np.asarray(target), expected, rtol=1e-6, atol=1e-7)
+    assert int(new["n_updates"]) == 1 and float(new["log_alpha"]) == float(state["log_alpha"])
+
+
+@pytest.mark.parametrize("target_entropy, falls", [(-50.0, True), (50.0, False)])
+def test_autotuned_temperature_follows_the_entropy(target_entropy, falls):
+    """`--autotune-alpha`: α falls while the policy's entropy is above the target and rises below
+    it, and its step is the first Adam step on the gradient of the temperature loss
+    ∂/∂log α [−mean(log α (log π + H̄))] = H − H̄ (H = −mean log π)."""
+    spec, state = make("sac", autotune_alpha=True, target_entropy=target_entropy, lr_alpha=0.01)
+    state = filled_state(spec, state)
+    new, info = jax.jit(functools.partial(sac.update_step, spec))(state)
+    entropy = float(info["entropy"])
+    grad = entropy - target_entropy
+    expected = float(state["log_alpha"]) - 0.01 * grad / (abs(grad) + 1e-8)
+    assert float(new["log_alpha"]) == pytest.approx(expected, rel=1e-5)
+    assert (float(new["log_alpha"]) < float(state["log_alpha"])) == falls
+    assert float(info["alpha"]) == pytest.approx(np.exp(float(new["log_alpha"])), rel=1e-6)

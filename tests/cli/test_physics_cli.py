@@ -44,11 +44,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, needle, tmp_path,
 
 
 def build(argv):
-    from adarl.cli import train
-
-    parser = spec._RaisingParser(prog="adarl train", add_help=False)
-    train.add_arguments(parser)
-    return train.build_config(parser.parse_args(argv))[1]
+    return spec.build_config(argv)  # the config `adarl train *argv` would train
 
 
 def test_paper_ompo_preset_and_flags():

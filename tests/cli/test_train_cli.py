@@ -2,8 +2,9 @@
 
 import pytest
 
+from adarl.algos.flags import parse_int_list
 from adarl.cli.main import main
-from adarl.cli.train import add_arguments, build_config, parse_int_list
+from adarl.cli.train import add_arguments, build_config
 
 
 @pytest.mark.parametrize(
@@ -81,7 +82,7 @@ def test_seed_lists():
 
 
 def test_spec_lists_keep_fixed_dynamics_whole():
-    from adarl.cli.train import split_specs
+    from adarl.algos.flags import split_specs
 
     assert split_specs("nominal,fixed:torso_length=0.5,foot_length=0.39,default") == (
         "nominal",
@@ -190,3 +191,28 @@ def test_quickstart_reports_unless_told_not_to():
     assert wants_report(None, "quickstart") and not wants_report(False, "quickstart")
     assert not wants_report(None, "paper") and not wants_report(None, None)
     assert wants_report(True, None)
+
+
+def test_every_config_field_has_its_meaning_in_help(capsys):
+    """A field's meaning is the comment next to it in its config class, shown by --help."""
+    import dataclasses
+
+    from adarl.algos import registry
+
+    for cls in registry.config_classes():
+        meanings = registry.field_help(cls)
+        missing = [f.name for f in dataclasses.fields(cls) if not meanings.get(f.name)]
+        assert not missing, f"{cls.__name__}: give these fields a comment: {missing}"
+    assert registry.field_help(registry.get("sac").config_class)["buffer_size"] == (
+        "replay buffer capacity per seed (transitions)"
+    )
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert (
+        "--buffer-size INT replay buffer capacity per seed (transitions); default: 1000000" in out
+    )
+    assert "--clip-eps FLOAT PPO's clip range ε; default: 0.2" in out
+    # a comment block above a field is its help; a `# --- section` heading is not
+    assert "--lanes INT the seeds form this many lanes" in out
+    assert "--hidden TUPLE hidden layer widths of actor and critics; default: 64,64" in out

@@ -12,8 +12,8 @@ from gymnasium.envs.mujoco.mujoco_env import expand_model_path
 from adarl.envs import PHYSICS, VERSIONS, env_options, get_task, make, make_vec
 from adarl.envs.dynamics import KINDS
 from adarl.envs.model import XML_FILES, XML_FILES_V4, ModelEditor, compile_model, nominal_masses
+from adarl.envs.rollout import run_episodes
 from adarl.errors import UsageError
-from adarl.evaluation.rollout import run_episodes
 
 TASKS = ("hopper", "walker2d", "ant", "humanoid")
 LENGTHS = [(0.2, 0.195), (0.6, 0.59), (0.3, 0.49), (0.1, 0.05)]  # torso, foot half-lengths

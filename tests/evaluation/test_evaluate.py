@@ -69,7 +69,9 @@ def test_same_seed_same_returns_with_one_or_two_workers(run):
     s = spec(sweeps=["torso_length=0.3,0.5"], holds=["foot_length=0.39"])
     (a,) = evaluate.evaluate_runs([run], s, workers=1)
     (b,) = evaluate.evaluate_runs([run], s, workers=1)
-    (c,) = evaluate.evaluate_runs([run], s, workers=2, method="fork")  # spawn: same, slower
+    # spawn, as `evaluate.start_method` picks once JAX is loaded (the test process has JAX's
+    # threads, which a fork would copy half-way)
+    (c,) = evaluate.evaluate_runs([run], s, workers=2, method="spawn")
     pd.testing.assert_frame_equal(a, b)
     pd.testing.assert_frame_equal(a, c)
     assert len(a) == 2 * 2 * 2  # points × seeds × episodes

@@ -46,9 +46,10 @@ def test_nested_config_sections_and_seed_forms():
 def test_method_labels_tell_variants_apart():
     assert runs.method_label({"algo": "sac-fixed-rank", "rank": 7}) == "sac-fixed-rank r=7"
     assert runs.method_label({"algo": "adarl", "rank_rule": "ratio"}) == "adarl (ratio rule)"
+    from adarl.algos.registry import DEFAULT_RANK_RULE
     from adarl.algos.sac import SACConfig
 
-    assert runs.DEFAULT_RANK_RULE == SACConfig.rank_rule
+    assert DEFAULT_RANK_RULE == SACConfig.rank_rule
     assert runs.method_label({"algo": "adarl", "rank_rule": "energy"}) == "adarl"  # the default
     assert runs.method_label({"algo": "adarl"}) == "adarl (cumulative rule)"  # older runs
     assert (

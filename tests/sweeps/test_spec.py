@@ -81,6 +81,7 @@ def test_presets_expand_to_the_documented_protocols():
         "repro-hopper",
         "repro-walker2d",
     }
+    assert len(units["physics"]) == 8  # 2 tasks x physics consistent/ompo x models v5/v4
     table1 = units["paper-table1"]
     assert len(table1) == 28  # Parseval at each of the paper's three coefficients
     assert {(u.task, u.algo) for u in table1} == {

@@ -19,7 +19,7 @@ import yaml
 
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.cli.main import main
-from adarl.train import io, sac_loop
+from adarl.train import io, rnac_loop, sac_loop
 
 HOLD = """
 import sys, time
@@ -208,7 +208,7 @@ def test_rnac_falls_back_to_an_older_checkpoint_and_resumes_exactly(tmp_path, ca
         **{**rnac.PRESETS["smoke"], "total_steps": 512, "checkpoint_every": 256}
     )
     base = tmp_path / "base"
-    rnac.train(config, base)
+    rnac_loop.train(config, base)
     run_dir = unfinished_copy(base, tmp_path / "run")
     newest = io.checkpoint_dirs(run_dir)[-1] / "arrays.npz"
     data = bytearray(newest.read_bytes())

@@ -11,7 +11,7 @@ import pytest
 from adarl import __version__
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.evaluation import report
-from adarl.train import provenance, sac_loop
+from adarl.train import provenance, rnac_loop, sac_loop
 
 ROOT = Path(provenance.__file__).resolve().parents[2]
 
@@ -121,8 +121,8 @@ def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
 
 
 def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
-    monkeypatch.setattr(rnac, "init_states", _stop)  # stop before any JAX work
+    monkeypatch.setattr(rnac_loop, "init_states", _stop)  # stop before any JAX work
     with pytest.raises(Stop):
-        rnac.train(rnac.RNACConfig(**rnac.PRESETS["smoke"]), tmp_path / "run", progress=False)
+        rnac_loop.train(rnac.RNACConfig(**rnac.PRESETS["smoke"]), tmp_path / "run", progress=False)
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["mujoco"] == metadata.version("mujoco")

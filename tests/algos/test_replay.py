@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from adarl.train import buffer as replay
+from adarl.algos import replay
 
 
 def fill(capacity, episodes, obs_dim=3, act_dim=2, chunk=7):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from adarl.envs import make
-from adarl.evaluation.rollout import run_episodes
+from adarl.envs.rollout import run_episodes
 
 
 @pytest.mark.parametrize("task", ["hopper", "ant"])

@@ -1,0 +1,133 @@
+"""The run-folder module: runs written by earlier versions load, resume and evaluate; the
+environment-state codec round-trips; config.yaml is written and read back through the registry.
+
+tests/data/run-format-1 holds two tiny runs written by adarl at commit 96c9f8c (run format 1,
+before the run-folder module): `sac-family` (adarl, 2 seeds, 200 steps, 4 truncations) and
+`rnac` (2 seeds, 128 steps), each with checkpoints at two steps."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from adarl.algos import registry
+from adarl.cli.main import main
+from adarl.train import run_folder
+from adarl.train.io import read_csv
+
+OLD = Path(__file__).parent.parent / "data" / "run-format-1"
+
+
+def _rows(run: Path, name: str) -> list[dict]:
+    rows = read_csv(run / name)
+    for row in rows:
+        row.pop("steps_per_s", None)  # wall-clock
+    return rows
+
+
+def _same_rows(a: list[dict], b: list[dict]) -> bool:
+    """Equal rows; numbers equal to float32 rounding (the data was written on another machine,
+    whose CPU may round a JAX reduction differently), everything else exactly."""
+    if len(a) != len(b):
+        return False
+    for x, y in zip(a, b):
+        if x.keys() != y.keys():
+            return False
+        for key in x:
+            if x[key] == y[key]:
+                continue
+            try:
+                if not np.isclose(float(x[key]), float(y[key]), rtol=1e-4, atol=1e-6):
+                    return False
+            except ValueError:
+                return False
+    return True
+
+
+@pytest.mark.parametrize(("name", "algo"), [("sac-family", "adarl"), ("rnac", "rnac")])
+def test_old_run_config_loads(name, algo):
+    got_algo, config = run_folder.config_from_run(OLD / name)
+    assert got_algo == algo
+    assert config.seeds == (0, 1) and config.hidden == (16, 16)
+    assert isinstance(config, registry.get(algo).config_class)
+
+
+@pytest.mark.parametrize("name", ["sac-family", "rnac"])
+def test_old_run_resumes_to_its_own_results(name, tmp_path):
+    """Killed after its first checkpoint (the last one, DONE and half a CSV line lost), the old
+    run resumes from its old-format checkpoint (old RNG keys, old env-state encoding, old CSV
+    offset names) and writes the rows it wrote the first time."""
+    run = tmp_path / name
+    shutil.copytree(OLD / name, run)
+    checkpoints = sorted((run / "checkpoints").iterdir())
+    shutil.rmtree(checkpoints[-1])
+    (run / "DONE").unlink()
+    with open(run / "episodes.csv", "a") as f:
+        f.write("99,0,99,12.")
+    assert main(["train", "--resume", str(run), "--no-progress"]) == 0
+    assert (run / "DONE").read_text() == (OLD / name / "DONE").read_text()
+    for csv in sorted(p.name for p in (OLD / name).glob("*.csv")):
+        assert _same_rows(_rows(run, csv), _rows(OLD / name, csv)), csv
+    meta = json.loads((sorted((run / "checkpoints").iterdir())[-1] / "meta.json").read_text())
+    assert "rng_states" in meta and "np_rngs" not in meta  # rewritten in today's keys
+
+
+def test_old_runs_evaluate_rank_and_export(tmp_path, capsys):
+    run = tmp_path / "sac-family"
+    shutil.copytree(OLD / "sac-family", run)
+    assert main(["ranks", str(run)]) == 0
+    table = capsys.readouterr().out
+    assert "actor_1" in table and "16→" in table
+    assert main(["ranks", str(run), "--layer", "q1_1"]) == 0
+    only = capsys.readouterr().out
+    assert "q1_1" in only and "actor_1" not in only
+    assert main(["ranks", str(run), "--layer", "q3_1"]) == 2
+    assert "unknown layer 'q3_1'; this run has: actor_1, q1_1, q2_1" in capsys.readouterr().err
+    assert main(["ranks", str(OLD / "rnac")]) == 2
+    assert "has no truncations.csv (algo 'rnac'" in capsys.readouterr().err
+    argv = ["evaluate", str(run), "--dynamics", "nominal", "--episodes", "1"]
+    assert main([*argv, "--max-episode-steps", "10", "--workers", "1"]) == 0
+    assert list((run / "evaluations").glob("*.csv"))
+    rnac = tmp_path / "rnac"
+    shutil.copytree(OLD / "rnac", rnac)
+    assert main(["export", str(rnac), "--seed", "1", "--out", str(tmp_path / "p.npz")]) == 0
+    assert (tmp_path / "p.npz").exists()
+
+
+def test_env_state_codec_round_trip():
+    state = {
+        "a": np.arange(3.0),
+        "t": (1, np.int64(2), [np.zeros((2, 2), np.float32)]),
+        "d": {"x": None, "y": "text", "z": np.float64(0.5)},
+    }
+    arrays: dict = {}
+    encoded = run_folder.encode_env_state(state, arrays, "env/0")
+    json.dumps(encoded)  # meta.json-able
+    back = run_folder.decode_env_state(json.loads(json.dumps(encoded)), arrays)
+    assert isinstance(back["t"], tuple) and back["t"][1] == 2 and back["d"] == state["d"]
+    np.testing.assert_array_equal(back["a"], state["a"])
+    assert back["t"][2][0].dtype == np.float32 and sorted(arrays) == ["env/0/a", "env/0/t/2/0"]
+    # the SAC loop's encoding of run format 1: arrays inline in meta.json
+    old = {"a": {"__ndarray__": [1.0, 2.0], "dtype": "float32"}, "b": [1, 2]}
+    legacy = run_folder.decode_env_state(old, {})
+    assert legacy["a"].dtype == np.float32 and legacy["b"] == [1, 2]
+
+
+def test_legacy_meta_keys():
+    assert run_folder.rng_states({"np_rngs": [1]}) == [1]
+    assert run_folder.rng_states({"rng_states": [2], "np_rngs": [1]}) == [2]
+    offsets = run_folder.csv_offsets({"csv_offsets": {"episodes": 3, "train.csv": 4}})
+    assert offsets == {"episodes.csv": 3, "train.csv": 4}
+
+
+@pytest.mark.parametrize("algo", registry.ALGOS)
+def test_config_yaml_round_trips_through_the_registry(algo, tmp_path):
+    flags = {"seeds": "0-2", **({"rank": "7"} if "rank" in registry.field_names(algo) else {})}
+    config = registry.resolve_config(algo, "smoke", flags)
+    tmp_path.joinpath("run").mkdir()
+    run_folder.write_config(tmp_path / "run", config, algo, "adarl train …")
+    record = run_folder.load_config(tmp_path / "run")
+    assert record["algo"] == algo and record["command"] == "adarl train …"
+    assert run_folder.config_from_run(tmp_path / "run") == (algo, config)
