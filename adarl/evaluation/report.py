@@ -17,6 +17,8 @@ Layout of the report folder::
     tables/contrast_FIELD.{md,csv}  with --contrast FIELD: differences along one setting, CIs
     tables/fixed_rank.{md,csv}   final return per fixed rank (bias–variance sweep)
     tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
+    tables/suites.{md,csv}       worst-case / average return over robustness suites' grids
+    tables/robustness_size_<task>_<suite>.csv   return against the size of the perturbation
     tables/runs.csv
     tables/environments.csv      versions, CPU and XLA flags each run was made with
     figures/*.{png,pdf}
@@ -873,7 +875,16 @@ def size_curves(
         files.append(_write(folder, f"tables/{_slug(stem)}.csv", _csv(summary)))
         rings = perturbation.describe_rings(data)
         sizes = ", ".join(f"{ring:.3g} ({count})" for ring, count in rings.items())
-        lines.append(f"- {task}, {name}: rings (grid points) {sizes}; `figures/{_slug(stem)}`")
+        lines.append(f"{task}, {name}: rings (grid points) {sizes}; `figures/{_slug(stem)}`\n")
+        cells = summary.pivot(index="method", columns="ring", values="mean_mean").loc[order]
+        worst = summary.groupby("method")["worst_within_mean"].last().loc[order]
+        lines.append(
+            tables.markdown_table(
+                ["mean return at size", *(f"{ring:.3g}" for ring in cells.columns),
+                 f"worst within {cells.columns[-1]:.3g}"],
+                [[m, *(f"{v:.1f}" for v in cells.loc[m]), f"{worst[m]:.1f}"] for m in order],
+            )
+        )  # fmt: skip
     if not lines:
         return files, ""
     text = (
@@ -882,9 +893,8 @@ def size_curves(
         "parameter's training half-range a (1 = the edge of the training range; "
         "docs/evaluation.md). Left: per seed, the mean return over the points of each size "
         "(a ring); right: the worst point of size ≤ r, the worst-case return of the training box "
-        f"scaled by r. Mean over seeds with a {options.confidence:.0%} t band.\n\n"
-        + "\n".join(lines)
-        + "\n"
+        f"scaled by r. Mean over seeds with a {options.confidence:.0%} t band; intervals in "
+        "`tables/robustness_size_<task>_<suite>.csv`.\n\n" + "\n".join(lines) + "\n"
     )
     return files, text
 

@@ -198,3 +198,5 @@ def test_report_draws_the_size_curve_next_to_the_heatmap(tmp_path):
     index = (out / "index.md").read_text()
     assert "Return against the size of the perturbation" in index
     assert "robustness_size_hopper_paper" in index
+    assert "| mean return at size | 0.111 | 0.333 | 0.556 | 0.778 | 1 | worst within 1 |" in index
+    assert "| sac | 943.3 | 810.0 | 676.7 | 543.3 | 410.0 | 410.0 |" in index  # 1010 − 600·size
