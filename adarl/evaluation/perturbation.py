@@ -17,11 +17,12 @@ grown (r > 1) by r about its centre, and the worst case over them is the worst-c
 that scaled uncertainty set. It is also robust control's normalisation of parametric
 uncertainty, p_i = c_i + a_i δ_i with ‖δ‖_∞ ≤ 1, whose stability margin is the largest such
 scaling (Zhou, Doyle & Glover 1996, "Robust and Optimal Control": parametric uncertainty as
-linear fractional transformations with normalised δ_i ∈ [−1, 1]). On a product grid of `np.linspace(c − a, c + a, n)` values the max-norm
-sizes are the grid's own concentric square rings: for n = 10 the normalised values are
-±1/9, ±3/9, …, ±1, the sizes 1/9, 3/9, 5/9, 7/9, 1 with 4, 12, 20, 28, 36 points (the nominal
-point itself is not on the grid). The Euclidean size gives 15 distinct values on that grid,
-circles that cut through it, and needs binning.
+linear fractional transformations with normalised δ_i ∈ [−1, 1]). On a product grid of
+`np.linspace(c − a, c + a, n)` values the max-norm sizes are the grid's own concentric square
+rings: for n = 10 the normalised values are ±1/9, ±3/9, …, ±1, the sizes 1/9, 3/9, 5/9, 7/9, 1
+with 4, 12, 20, 28, 36 points (the nominal point itself is not on the grid; for odd n it is, a
+ring of size 0). The Euclidean size gives 14 distinct values on that grid, circles that cut
+through it, and needs binning.
 
 A ring is the set of grid points of one size (by default, every distinct size is its own ring:
 exact, nothing merged) or of sizes in one bin (e0, e1] of given edges, labelled by its upper edge

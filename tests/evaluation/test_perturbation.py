@@ -77,6 +77,16 @@ def test_the_paper_grid_has_five_square_rings():
         assert list(counts) == [4, 12, 20, 28, 36]
 
 
+def test_an_odd_grid_holds_the_nominal_point_as_ring_zero():
+    """`--points 7`: normalised 0, ±1/3, ±2/3, ±1, so rings 0, 1/3, 2/3, 1 of 1, 8, 16, 24."""
+    axes = suites.get_suite("paper", "hopper", points=7).axes()
+    grid_points = np.array(list(itertools.product(axes[0].values, axes[1].values)))
+    rings = perturbation.assign_rings(perturbation.perturbation_size(grid_points, CENTRE, HALF))
+    values, counts = np.unique(rings, return_counts=True)
+    np.testing.assert_allclose(values, [0, 1 / 3, 2 / 3, 1], atol=1e-4)
+    assert list(counts) == [1, 8, 16, 24]
+
+
 def point_table(returns_of, seeds=(0, 1)) -> pd.DataFrame:
     """One row per seed and point of Hopper's paper grid: `return` = returns_of(seed, size, torso)."""
     grid_points = paper_grid()
