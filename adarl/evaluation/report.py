@@ -882,7 +882,7 @@ def size_curves(
             tables.markdown_table(
                 ["mean return at size", *(f"{ring:.3g}" for ring in cells.columns),
                  f"worst within {cells.columns[-1]:.3g}"],
-                [[m, *(f"{v:.1f}" for v in cells.loc[m]), f"{worst[m]:.1f}"] for m in order],
+                [[m, *(_number(v) for v in cells.loc[m]), _number(worst[m])] for m in order],
             )
         )  # fmt: skip
     if not lines:
@@ -897,6 +897,11 @@ def size_curves(
         "`tables/robustness_size_<task>_<suite>.csv`.\n\n" + "\n".join(lines) + "\n"
     )
     return files, text
+
+
+def _number(value: float) -> str:
+    """One decimal, or a dash where a method lacks the ring (runs evaluated on other grids)."""
+    return f"{value:.1f}" if np.isfinite(value) else tables.DASH
 
 
 def _swept_values(table: pd.DataFrame, param: str) -> np.ndarray:
