@@ -49,6 +49,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--episodes", type=int, default=None,
         help="episodes per seed and point (default 10, or the suite's)",
     )  # fmt: skip
+    parser.add_argument(
+        "--points", type=int, default=None, metavar="N",
+        help="--suite only: N grid points per dimension instead of the suite's (a coarser grid "
+        "over the same ranges, for a quicker look)",
+    )  # fmt: skip
     add_checkpoint_argument(parser)
     parser.add_argument(
         "--workers", type=int, default=None, help="worker processes (default: all cores)"
@@ -88,6 +93,8 @@ def command_line(args: argparse.Namespace) -> str:
         parts += ["--hold", h]
     if args.episodes is not None or args.suite is None:
         parts += ["--episodes", str(10 if args.episodes is None else args.episodes)]
+    if getattr(args, "points", None) is not None:
+        parts += ["--points", str(args.points)]
     if args.checkpoint is not None:
         parts += ["--checkpoint", str(args.checkpoint)]
     if args.eval_seed != EVAL_SEED:
@@ -114,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
         return run_suite_command(args)
     if args.backend != "local" or args.address:
         raise UsageError("--backend and --address apply to --suite evaluations; add --suite NAME")
+    if args.points is not None:
+        raise UsageError("--points applies to --suite evaluations; add --suite NAME")
     if args.episodes is None:
         args.episodes = 10
     spec = EvalSpec.from_options(
@@ -170,6 +179,8 @@ def run_suite_command(args: argparse.Namespace) -> int:
         )
     if args.suite not in suites.SUITES:  # before looking at any run folder
         suites.get_suite(args.suite, "")
+    if args.points is not None and args.points < 2:
+        raise UsageError(f"--points must be ≥ 2, got {args.points}")
     if args.episodes is not None and args.episodes < 1:
         raise UsageError(f"--episodes must be ≥ 1, got {args.episodes}")
     if args.max_episode_steps is not None and args.max_episode_steps < 1:
@@ -178,7 +189,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     options = dict(
         checkpoint=args.checkpoint, eval_seed=args.eval_seed, max_steps=args.max_episode_steps
     )
-    suites.plan_suite(runs, args.suite, args.episodes, **options)  # every check, nothing run
+    suites.plan_suite(runs, args.suite, args.episodes, args.points, **options)  # checks only
     stem = suites.file_name(args.suite, args.checkpoint)
     for run_ in runs:
         check_writable_file(run_.path / "evaluations" / f"{stem}.csv")
@@ -191,12 +202,13 @@ def run_suite_command(args: argparse.Namespace) -> int:
         backend=args.backend,
         address=args.address,
         progress=not args.no_progress,
+        points=args.points,
         **options,
     )
     command = command_line(args)
     for run_, table in zip(runs, tables):
         _, summary_path = suites.write_suite(
-            table, run_, args.suite, args.episodes, command=command, **options
+            table, run_, args.suite, args.episodes, command=command, points=args.points, **options
         )
         summary = pd.read_csv(summary_path)
         print(f"{run_.path} ({run_.task}, {run_.label}): suite {args.suite} -> {summary_path}")

@@ -223,6 +223,39 @@ def suite_heatmap(
     return fig
 
 
+@styled
+def robustness_size_curve(
+    data: pd.DataFrame,
+    title: str = "",
+    colours: Mapping[str, tuple] | None = None,
+    xlabel: str = "perturbation size (max_i |p_i − c_i| / a_i)",
+) -> Figure:
+    """Return against the size of the perturbation (`adarl.evaluation.perturbation`), one line
+    per method with its 95% t band over seeds. Left: each seed's mean return over the grid points
+    of a ring; right: the worst point within the size (points of size ≤ r). A dotted line marks
+    the edge of the training range (size 1).
+
+    `data`: `method, seed, ring, mean, worst_within` (`perturbation.ring_returns` per method)."""
+    colours = colours or method_colours(data["method"].unique())
+    fig = Figure(figsize=(FULL_WIDTH, 2.6), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
+    panels = (("mean", "mean over the ring's points"), ("worst_within", "worst point within size"))
+    for ax, (column, label) in zip(axes, panels):
+        for method in sort_methods(data["method"].unique()):
+            x, values = _by_seed(data[data["method"] == method], "ring", column)
+            _band(ax, x, values, method, colours.get(method), marker="o", markersize=3)
+        if float(data["ring"].max()) >= 1.0:
+            ax.axvline(1.0, color="grey", linestyle=":", linewidth=1.0, label="training range")
+        ax.set_xlabel(xlabel)
+        ax.set_title(label)
+        ax.set_xlim(left=0)
+    axes[0].set_ylabel("return")
+    axes[1].legend(loc="best")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
 def _edges(centres: np.ndarray) -> np.ndarray:
     """Cell edges around (sorted) centres: midpoints, and half a step beyond the ends."""
     c = np.asarray(centres, float)

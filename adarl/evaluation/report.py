@@ -17,6 +17,8 @@ Layout of the report folder::
     tables/contrast_FIELD.{md,csv}  with --contrast FIELD: differences along one setting, CIs
     tables/fixed_rank.{md,csv}   final return per fixed rank (bias–variance sweep)
     tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
+    tables/suites.{md,csv}       worst-case / average return over robustness suites' grids
+    tables/robustness_size_<task>_<suite>.csv   return against the size of the perturbation
     tables/runs.csv
     tables/environments.csv      versions, CPU and XLA flags each run was made with
     figures/*.{png,pdf}
@@ -200,7 +202,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     sections.append(training_section(main, folder, colours))
     sections.append(rank_section(runs, folder))
     sections.append(robustness_section(runs, folder, colours, notes))
-    sections.append(suites_section(runs, folder, options))
+    sections.append(suites_section(runs, folder, options, colours))
     sections.append(bias_variance_section(fixed, runs, finals, folder))
     sections.append(ablation_section(runs, folder))
     sections.append(spectra_section(runs, folder))
@@ -772,9 +774,10 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
     return Section("Robustness", text, files)
 
 
-def suites_section(runs: list[Run], folder: Path, options: ReportOptions) -> Section:
+def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colours=None) -> Section:
     """Worst-case and average return over each robustness suite's grid (`adarl evaluate
-    --suite`), mean over seeds with bootstrap intervals; a heatmap per two-parameter suite."""
+    --suite`), mean over seeds with bootstrap intervals; a heatmap per two-parameter suite and,
+    for suites over the training parameters, return against the size of the perturbation."""
     from adarl.evaluation import suites
 
     found: dict[tuple[str, str, str], list[tuple[pd.DataFrame, pd.DataFrame]]] = {}
@@ -817,6 +820,8 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions) -> Sec
                 *suites.heatmap_grid(table, x, y), x, y, f"{task}, {name}: {method}"
             )
             files += _figure(folder, fig, f"suite_{task}_{name}_{method}")
+    size_files, size_text = size_curves(found, keys, folder, options, colours)
+    files += size_files
     df = pd.DataFrame(rows)
     files.insert(0, _write(folder, "tables/suites.csv", _csv(df)))
     md = tables.markdown_table(
@@ -837,7 +842,67 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions) -> Sec
         f"with a {conf:.0%} percentile bootstrap interval over seeds ({reps} resamples). "
         "Heatmaps: two-parameter suites, mean over seeds, the worst point circled.\n\n"
     )
-    return Section(title, text + md, files)
+    return Section(title, text + md + size_text, files)
+
+
+def size_curves(
+    found: dict, keys: list, folder: Path, options: ReportOptions, colours=None
+) -> tuple[list[Path], str]:
+    """Return against the size of the perturbation (`adarl.evaluation.perturbation`) for every
+    task × suite whose parameters all have a training range: one figure and one table each,
+    `figures/robustness_size_<task>_<suite>`, `tables/robustness_size_<task>_<suite>.csv`."""
+    from adarl.evaluation import perturbation, suites
+
+    curves: dict[tuple[str, str], list[pd.DataFrame]] = {}
+    for task, name, method in keys:
+        params = [r.param for r in suites.get_suite(name, task).ranges]
+        box = perturbation.training_box(task, params)
+        if box is None:
+            continue
+        table = pd.concat([t for _, t in found[(task, name, method)]], ignore_index=True)
+        rings = perturbation.ring_returns(suites.point_means(table), params, *box)
+        curves.setdefault((task, name), []).append(rings.assign(method=method))
+    files, lines = [], []
+    for (task, name), frames in curves.items():
+        data = pd.concat(frames, ignore_index=True)
+        stem = f"robustness_size_{task}_{name}"
+        fig = figures.robustness_size_curve(data, f"{task}, suite {name}", colours)
+        files += _figure(folder, fig, stem)
+        summary = perturbation.ring_summary(data, options.confidence)
+        order = sort_methods(summary["method"].unique())
+        summary = summary.sort_values(
+            ["method", "ring"], key=lambda c: c.map(order.index) if c.name == "method" else c
+        )
+        files.append(_write(folder, f"tables/{_slug(stem)}.csv", _csv(summary)))
+        rings = perturbation.describe_rings(data)
+        sizes = ", ".join(f"{ring:.3g} ({count})" for ring, count in rings.items())
+        lines.append(f"{task}, {name}: rings (grid points) {sizes}; `figures/{_slug(stem)}`\n")
+        cells = summary.pivot(index="method", columns="ring", values="mean_mean").loc[order]
+        worst = summary.groupby("method")["worst_within_mean"].last().loc[order]
+        lines.append(
+            tables.markdown_table(
+                ["mean return at size", *(f"{ring:.3g}" for ring in cells.columns),
+                 f"worst within {cells.columns[-1]:.3g}"],
+                [[m, *(_number(v) for v in cells.loc[m]), _number(worst[m])] for m in order],
+            )
+        )  # fmt: skip
+    if not lines:
+        return files, ""
+    text = (
+        "\n\n**Return against the size of the perturbation.** The size of a grid point is "
+        "max_i |p_i − c_i| / a_i, its distance from the nominal point c in units of each "
+        "parameter's training half-range a (1 = the edge of the training range; "
+        "docs/evaluation.md). Left: per seed, the mean return over the points of each size "
+        "(a ring); right: the worst point of size ≤ r, the worst-case return of the training box "
+        f"scaled by r. Mean over seeds with a {options.confidence:.0%} t band; intervals in "
+        "`tables/robustness_size_<task>_<suite>.csv`.\n\n" + "\n".join(lines) + "\n"
+    )
+    return files, text
+
+
+def _number(value: float) -> str:
+    """One decimal, or a dash where a method lacks the ring (runs evaluated on other grids)."""
+    return f"{value:.1f}" if np.isfinite(value) else tables.DASH
 
 
 def _swept_values(table: pd.DataFrame, param: str) -> np.ndarray:

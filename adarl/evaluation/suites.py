@@ -177,9 +177,11 @@ def _paper_suites() -> dict[str, Suite]:
 SUITES: dict[str, dict[str, Suite]] = _literature_suites() | {"paper": _paper_suites()}
 
 
-def get_suite(name: str, task: str) -> Suite:
-    """The suite `name` for `task`; a one-line `UsageError` naming the value and what is allowed
-    when the name is unknown or the suite has no set for the task."""
+def get_suite(name: str, task: str, points: int | None = None) -> Suite:
+    """The suite `name` for `task` (with `points` per dimension instead of its own, when given:
+    `adarl evaluate --suite NAME --points N`, a coarser grid over the same ranges); a one-line
+    `UsageError` naming the value and what is allowed when the name is unknown or the suite has
+    no set for the task."""
     if name not in SUITES:
         raise UsageError(f"unknown suite {name!r}; allowed: {', '.join(SUITES)}")
     if task not in SUITES[name]:
@@ -188,6 +190,10 @@ def get_suite(name: str, task: str) -> Suite:
             f"suite {name!r} does not apply to task {task!r} (it covers "
             f"{', '.join(SUITES[name])}); allowed for {task}: {', '.join(allowed) or 'none'}"
         )
+    if points is not None:
+        if points < 2:
+            raise UsageError(f"--points must be ≥ 2, got {points}")
+        return replace(SUITES[name][task], points=points)
     return SUITES[name][task]
 
 
@@ -265,13 +271,15 @@ def suite_spec(suite: Suite, episodes: int | None = None, **kwargs):
     )
 
 
-def plan_suite(runs: Sequence, name: str, episodes: int | None = None, **kwargs) -> list:
+def plan_suite(
+    runs: Sequence, name: str, episodes: int | None = None, points: int | None = None, **kwargs
+) -> list:
     """Every unit of work (one seed at one grid point) of suite `name` for `runs`, all checked
     before any episode runs: unknown suite, a run whose task the suite does not cover, bad
     checkpoints (one-line `UsageError`s)."""
     from adarl.evaluation.evaluate import plan
 
-    suites = [get_suite(name, run.task) for run in runs]  # every run checked first
+    suites = [get_suite(name, run.task, points) for run in runs]  # every run checked first
     units = []
     for index, (run, suite) in enumerate(zip(runs, suites)):
         spec = suite_spec(suite, episodes, **kwargs)
@@ -287,13 +295,14 @@ def run_suite(
     backend: str = "local",
     address: str | None = None,
     progress: bool = True,
+    points: int | None = None,
     **kwargs,
 ) -> list[pd.DataFrame]:
     """Evaluate every seed of every run on suite `name`; one episode table per run."""
     from adarl.evaluation.evaluate import _table
     from adarl.evaluation.parallel import run_units
 
-    units = plan_suite(runs, name, episodes, **kwargs)
+    units = plan_suite(runs, name, episodes, points, **kwargs)
     results = run_units(units, workers, backend, address, progress, desc=f"suite {name}")
     per_run: list[list[dict]] = [[] for _ in runs]
     for unit, rows in zip(units, results):
@@ -308,6 +317,7 @@ def write_suite(
     episodes: int | None = None,
     checkpoint: int | None = None,
     command: str | None = None,
+    points: int | None = None,
     **kwargs,
 ) -> tuple[Path, Path]:
     """Store a run's suite result: the episode table as an evaluation
@@ -316,7 +326,7 @@ def write_suite(
     from adarl.evaluation.evaluate import EVALUATIONS_DIR, write_evaluation
     from adarl.train.io import atomic_write_text
 
-    suite = get_suite(name, run.task)
+    suite = get_suite(name, run.task, points)
     stem = file_name(name, checkpoint)
     spec = suite_spec(suite, episodes, checkpoint=checkpoint, **kwargs)
     extra = {
@@ -325,6 +335,7 @@ def write_suite(
         "suite_source": suite.source,
         "suite_ranges": {r.param: [r.low, r.high] for r in suite.ranges},
         "suite_spacing": suite.spacing,
+        "suite_points": suite.points,
     }
     episodes_path = run.path / EVALUATIONS_DIR / f"{stem}.csv"
     write_evaluation(table, episodes_path, spec, run, command, extra=extra)

@@ -53,6 +53,19 @@ def test_suite_is_written_and_reported(tmp_path, capsys, tiny_suite):
     assert (report / "figures" / "suite_hopper_tiny-2d_adarl.png").is_file()
 
 
+def test_points_gives_a_coarser_grid_over_the_same_ranges(tmp_path, capsys):
+    run = write_run(tmp_path, "hopper", seeds=(0,))
+    argv = ["evaluate", str(run), "--suite", "paper", "--points", "2", "--workers", "1", *FAST]
+    assert main(argv) == 0
+    table = pd.read_csv(run / "evaluations" / "suite-paper.csv")
+    corners = {(0.2, 0.19), (0.2, 0.59), (0.6, 0.19), (0.6, 0.59)}  # the ranges' ends
+    assert set(zip(table["p_torso_length"], table["p_foot_length"])) == corners
+    assert len(table) == 4  # 2 x 2 points, 1 seed, 1 episode
+    meta = json.loads((run / "evaluations" / "suite-paper.json").read_text())
+    assert meta["suite_points"] == 2 and " --points 2 " in meta["command"]
+    assert "over 4 points and 1 seed(s)" in capsys.readouterr().out
+
+
 def _files(root):
     return sorted(p.relative_to(root) for p in root.rglob("*") if p.is_file())
 
@@ -69,6 +82,8 @@ def _files(root):
         (["hopper"], ["--suite", "paper", "--sweep", "mass_scale=1:2:2"], "without --sweep"),
         (["hopper"], ["--backend", "ray"], "apply to --suite evaluations"),
         (["hopper"], ["--suite", "paper", "--episodes", "0"], "--episodes must be ≥ 1"),
+        (["hopper"], ["--suite", "paper", "--points", "1"], "--points must be ≥ 2"),
+        (["hopper"], ["--points", "3"], "--points applies to --suite evaluations"),
     ],
 )
 def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, make_runs, extra, fragment):
