@@ -10,7 +10,7 @@ import adarl
 PACKAGE = Path(adarl.__file__).parent
 # lowest first; a module may import from its own layer and the layers before it
 LAYERS = [
-    {"__init__", "__version__", "errors", "runtime", "files", "policy"},
+    {"__init__", "__version__", "errors", "runtime", "files", "policy", "cluster"},
     {"envs"},
     {"nets"},
     {"algos"},

@@ -34,17 +34,23 @@ def run_episodes(
     try:
         for k in range(n_episodes):
             obs, info = env.reset(seed=seed + k)
-            start_x = float(env.unwrapped.data.qpos[0])
+            start_x = _root_x(env)
             total, length, done = 0.0, 0, False
             while not done:
                 obs, reward, terminated, truncated, info = env.step(policy(obs))
                 total += float(reward)
                 length += 1
                 done = terminated or truncated or (max_steps is not None and length >= max_steps)
-            distance = float(env.unwrapped.data.qpos[0]) - start_x
+            distance = _root_x(env) - start_x
             row = {"episode": k, "return": total, "length": length, "distance": distance}
             row.update({f"p_{name}": float(v) for name, v in info["dynamics"].items()})
             rows.append(row)
     finally:
         env.close()
     return rows
+
+
+def _root_x(env) -> float:
+    """x of the root body (first `qpos` entry) of a MuJoCo env; NaN for other envs."""
+    data = getattr(env.unwrapped, "data", None)
+    return float(data.qpos[0]) if data is not None else float("nan")

@@ -76,8 +76,8 @@ def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
 
 
 def _run_ray(units: Sequence, workers: int, address: str | None, bar) -> list[list[dict]]:
+    from adarl.cluster import connect_ray
     from adarl.evaluation.evaluate import run_unit
-    from adarl.sweeps.backends import connect_ray
 
     ray = connect_ray(address, workers)
     try:

@@ -354,19 +354,7 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
                 rows = run_episodes(
                     policy, config.task, spec, config.eval_episodes, 1_000_000 + s, **options
                 )
-                logs[rf.EVAL_CSV].write(
-                    [
-                        {
-                            "step": step,
-                            "seed": s,
-                            "dynamics": spec,
-                            "episode": r["episode"],
-                            "return": r["return"],
-                            "length": r["length"],
-                        }
-                        for r in rows
-                    ]
-                )
+                logs[rf.EVAL_CSV].write(rf.eval_rows(step, s, spec, rows))
                 mean_return = float(np.mean([r["return"] for r in rows]))
                 tb.write(step, {rf.tb_eval_return(spec, s): mean_return})
                 if spec == "nominal":

@@ -52,6 +52,21 @@ def episode_columns(param_names) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- TensorBoard tags
+def eval_rows(step: int, seed: int, dynamics: str, episodes: list[dict]) -> list[dict]:
+    """eval.csv rows (`EVAL_COLUMNS`) of one seed's evaluation episodes (`run_episodes` output)."""
+    return [
+        {
+            "step": step,
+            "seed": seed,
+            "dynamics": dynamics,
+            "episode": r["episode"],
+            "return": r["return"],
+            "length": r["length"],
+        }
+        for r in episodes
+    ]
+
+
 def tb_episode_return(seed: int) -> str:
     return f"episode/return/seed{seed}"
 

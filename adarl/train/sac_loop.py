@@ -497,19 +497,7 @@ class Run:
                     physics=c.physics,
                     version=c.model_version,
                 )
-                self.logs[rf.EVAL_CSV].write(
-                    [
-                        {
-                            "step": self.step,
-                            "seed": self.seeds[i],
-                            "dynamics": label,
-                            "episode": r["episode"],
-                            "return": r["return"],
-                            "length": r["length"],
-                        }
-                        for r in rows
-                    ]
-                )
+                self.logs[rf.EVAL_CSV].write(rf.eval_rows(self.step, self.seeds[i], label, rows))
                 mean_return = float(np.mean([r["return"] for r in rows]))
                 self.tb.write(self.step, {rf.tb_eval_return(label, self.seeds[i]): mean_return})
                 self.last_eval[self.seeds[i]] = mean_return

@@ -14,51 +14,22 @@ from adarl.train.io import read_csv
 # Each algorithm's `smoke` preset with the budgets of its own tests (tests/algos/test_sac_family.py,
 # tests/algos/test_rnac.py); the crash comes before the second checkpoint, with CSV rows written
 # after the first. A new algorithm needs an entry here (the test below says so).
+SAC_FAMILY_BUDGET = {
+    "seeds": (0, 1),
+    "total_steps": 400,
+    "start_steps": 100,
+    "update_after": 100,
+    "checkpoint_every": 200,
+    "eval_every": 200,
+    "log_every": 100,
+}
 BUDGETS = {
-    **{
-        algo: {
-            "seeds": (0, 1),
-            "total_steps": 400,
-            "start_steps": 100,
-            "update_after": 100,
-            "checkpoint_every": 200,
-            "eval_every": 200,
-            "log_every": 100,
-        }
-        for algo in ("sac", "sac-parseval")
-    },
+    "sac": SAC_FAMILY_BUDGET,
+    "sac-parseval": SAC_FAMILY_BUDGET,
     # truncations at gradient steps 150 and 300, one on each side of the crash
-    "adarl": {
-        "seeds": (0, 1),
-        "total_steps": 400,
-        "start_steps": 100,
-        "update_after": 100,
-        "checkpoint_every": 200,
-        "eval_every": 200,
-        "log_every": 100,
-        "truncate_every": 150,
-        "warmup_steps": 50,
-    },
-    "sac-fixed-rank": {
-        "seeds": (0, 1),
-        "total_steps": 400,
-        "start_steps": 100,
-        "update_after": 100,
-        "checkpoint_every": 200,
-        "eval_every": 200,
-        "log_every": 100,
-        "rank": 7,
-    },
-    "sac-sparse": {  # narrower than the default 1024 to keep the test fast
-        "seeds": (0, 1),
-        "total_steps": 400,
-        "start_steps": 100,
-        "update_after": 100,
-        "checkpoint_every": 200,
-        "eval_every": 200,
-        "log_every": 100,
-        "sparse_width": 256,
-    },
+    "adarl": {**SAC_FAMILY_BUDGET, "truncate_every": 150, "warmup_steps": 50},
+    "sac-fixed-rank": {**SAC_FAMILY_BUDGET, "rank": 7},
+    "sac-sparse": {**SAC_FAMILY_BUDGET, "sparse_width": 256},  # narrower than 1024: faster
     # the first checkpoint (640) falls inside a rollout (256 steps)
     "rnac": {
         "seeds": (0, 1),
