@@ -407,6 +407,11 @@ def contrast_groups(runs: Sequence[Run], contrast: str) -> tuple[str, str, dict]
     return field, reference, groups
 
 
+def _seed_scores(finals: dict, runs: list[Run]) -> np.ndarray:
+    """The final scores of every seed of `runs`, pooled."""
+    return np.concatenate([finals[r.path][0]["score"].to_numpy(float) for r in runs])
+
+
 def contrast_section(
     runs: list[Run], finals: dict, contrast: str, folder: Path, options: ReportOptions
 ) -> Section:
@@ -417,13 +422,9 @@ def contrast_section(
     for (task, method, others), by_value in groups.items():
         if reference not in by_value:
             continue
-
-        def seed_scores(members: list[Run]) -> np.ndarray:
-            return np.concatenate([finals[r.path][0]["score"].to_numpy(float) for r in members])
-
-        base = seed_scores(by_value[reference])
+        base = _seed_scores(finals, by_value[reference])
         for value in sorted(v for v in by_value if v != reference):
-            other = seed_scores(by_value[value])
+            other = _seed_scores(finals, by_value[value])
             if not len(base) or not len(other):
                 continue
             ci = stats.difference_ci(
