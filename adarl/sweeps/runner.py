@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from adarl.errors import UsageError
+from adarl.evaluation.summary import duration
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.backends import thread_env
 from adarl.sweeps.spec import Sweep, Unit
@@ -303,7 +304,7 @@ class SweepRun:
             step, rate = found
             self.manifest.update(unit.id, step=step, steps_per_s=rate)
             left = (unit.total_steps - step) / rate if rate > 0 else None
-            eta = f", eta {_duration(left)}" if left is not None else ""
+            eta = f", eta {duration(left)}" if left is not None else ""
             self.line(
                 unit,
                 "running",
@@ -322,7 +323,7 @@ class SweepRun:
         failed = [i for i in ids if units[i]["status"] == "failed"]
         echo(
             f"sweep {self.sweep.name}: {len(ids)} units, {len(done)} done "
-            f"({self.skipped} before this run), {len(failed)} failed, in {_duration(seconds)}"
+            f"({self.skipped} before this run), {len(failed)} failed, in {duration(seconds)}"
         )
         for uid in failed:
             record = units[uid]
@@ -338,7 +339,7 @@ class SweepRun:
 
     def _elapsed(self, unit: Unit) -> str:
         started = self.manifest.unit(unit.id).get("started")
-        return f" in {_duration(time.time() - started)}" if started else ""
+        return f" in {duration(time.time() - started)}" if started else ""
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -395,12 +396,3 @@ def _last_line(path: Path) -> str:
 def _one_line(text: str, limit: int = 200) -> str:
     text = " ".join(str(text).split())
     return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-def _duration(seconds: float) -> str:
-    seconds = int(max(0, seconds))
-    hours, rest = divmod(seconds, 3600)
-    minutes, secs = divmod(rest, 60)
-    if hours:
-        return f"{hours}h{minutes:02d}m"
-    return f"{minutes}m{secs:02d}s" if minutes else f"{secs}s"
