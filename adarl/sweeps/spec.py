@@ -34,7 +34,7 @@ TOP_KEYS = (
 )
 REQUIRED_KEYS = ("tasks", "algos", "seeds", "budget")
 EVAL_KEYS = ("eval_every", "eval_episodes", "eval_dynamics")
-ENTRY_KEYS = ("algo", "name", "preset", "grid")
+ENTRY_KEYS = ("algo", "name", "preset", "grid", "seeds")
 # set by the spec's own keys (tasks, seeds, budget), never by overrides
 RESERVED_FIELDS = {"algo": "algos", "task": "tasks", "seeds": "seeds", "total_steps": "budget"}
 
@@ -144,10 +144,11 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
         if preset not in known:
             raise UsageError(f"{where}: unknown preset {preset!r}; allowed: {', '.join(known)}")
 
-    groups = [tuple(seeds[i : i + group]) for i in range(0, len(seeds), group)]
     units = []
     for task, task_overrides in tasks.items():
         for entry in entries:
+            entry_seeds = entry["seeds"] or seeds
+            groups = [tuple(entry_seeds[i : i + group]) for i in range(0, len(entry_seeds), group)]
             algo_fields = fields[entry["algo"]]
             values = dict(base)
             values.update({k: v for k, v in overrides.items() if k in algo_fields})
@@ -398,6 +399,7 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
     if preset is not None:
         preset = _string(preset, f"{here}: preset")
     name = item.get("name")
+    seeds = _seeds(item["seeds"], f"{here}: seeds") if "seeds" in item else None
     grid = item.get("grid", {})
     if not isinstance(grid, dict) or ("grid" in item and not grid):
         raise UsageError(
@@ -422,7 +424,13 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
             else _label(algo, preset, {**settings, **point})
         )
         out.append(
-            {"algo": algo, "preset": preset, "label": label, "fields": {**settings, **point}}
+            {
+                "algo": algo,
+                "preset": preset,
+                "label": label,
+                "fields": {**settings, **point},
+                "seeds": seeds,
+            }
         )
     return out
 

@@ -30,6 +30,19 @@ def test_units_are_task_x_entry_x_seed_group():
     assert len({u.id for u in sweep.units}) == len(sweep.units)
 
 
+def test_an_entry_can_run_its_own_seeds_grouped_as_the_file_says():
+    sweep = _parse(algos=["sac", {"algo": "rnac", "seeds": "0-2"}], seeds="0-4", seeds_per_unit=2)
+    assert [u.id for u in sweep.units] == [
+        "hopper/sac/seeds-0-1",
+        "hopper/sac/seeds-2-3",
+        "hopper/sac/seeds-4",
+        "hopper/rnac/seeds-0-1",
+        "hopper/rnac/seeds-2",
+    ]
+    with pytest.raises(UsageError, match=r"algos entry 'rnac': seeds: seeds contain duplicates"):
+        _parse(algos=[{"algo": "rnac", "seeds": [1, 1]}])
+
+
 def test_overrides_apply_where_the_field_exists_most_specific_last():
     sweep = _parse(
         tasks={"hopper": None, "walker2d": {"truncate_every": 700_000}},
@@ -80,6 +93,7 @@ def test_presets_expand_to_the_documented_protocols():
         "physics",
         "repro-hopper",
         "repro-walker2d",
+        "ratio-rule-hopper",
     }
     assert len(units["physics"]) == 8  # 2 tasks x physics consistent/ompo x models v5/v4
     table1 = units["paper-table1"]
@@ -135,7 +149,19 @@ def test_presets_expand_to_the_documented_protocols():
         repro = units[f"repro-{task}"]
         assert len(repro) == 7 and {u.task for u in repro} == {task}
         assert {u.algo for u in repro} == {"adarl", "sac", "sac-parseval", "sac-sparse", "rnac"}
-        assert {(u.seeds, u.total_steps) for u in repro} == {((0, 1, 2, 3, 4), 100_000)}
+        dense = [u for u in repro if u.algo != "sac-sparse"]
+        assert {(u.seeds, u.total_steps) for u in dense} == {((0, 1, 2, 3, 4), 100_000)}
+        (sparse,) = [u for u in repro if u.algo == "sac-sparse"]
+        assert (sparse.seeds, sparse.total_steps) == ((0, 1, 2), 100_000)
+        assert _flags(sparse)["--sparse-width"] == "256"
+    hopper_adarl = next(u for u in units["repro-hopper"] if u.algo == "adarl")
+    for unit in units["ratio-rule-hopper"]:  # comparable with repro-hopper's adarl
+        assert set(unit.seeds) < set(hopper_adarl.seeds)
+        assert _flags(unit)["--rank-rule"] == "ratio"
+        assert {
+            k: v for k, v in _flags(unit).items() if k not in ("--seeds", "--rank-rule", "--beta")
+        } == {k: v for k, v in _flags(hopper_adarl).items() if k != "--seeds"}
+    assert sorted(_flags(u)["--beta"] for u in units["ratio-rule-hopper"]) == ["0.1", "0.98"]
 
 
 def test_the_files_preset_reaches_the_algorithms_that_have_it():
