@@ -53,6 +53,13 @@ class Algorithm:
     best_policy: bool = False
     # the method's name in reports, from a run's config (`value(field, default)`): variants apart
     report_label: Callable[[Callable], str] | None = None
+    # --- roles in the paper's protocol, read by the report
+    adapts_rank: bool = False  # its bottleneck ranks change: the rank and ablation sections
+    # its runs span fixed ranks: the bias–variance figure, not the main table
+    rank_sweep: bool = False
+    # a config field whose best value per task the main table keeps ("best of N", as the paper
+    # does for Parseval's coefficient)
+    best_of: str | None = None
 
     @property
     def config_class(self) -> type:
@@ -73,6 +80,13 @@ def _fixed_rank_label(value) -> str:
     return f"sac-fixed-rank r={rank}" if rank is not None else "sac-fixed-rank"
 
 
+def _sparse_label(value) -> str:
+    """`sac-sparse`, with its width where it is not the paper's."""
+    width = value("sparse_width")
+    default = SAC_FAMILY["sac-sparse"]["sparse_width"]
+    return "sac-sparse" if width in (None, default) else f"sac-sparse w={width}"
+
+
 def _adarl_label(value) -> str:
     """`adarl`, plus a non-default rank rule or the retain clause's tolerance."""
     rule = str(value("rank_rule", "cumulative"))  # runs from before the field: Eq. 5
@@ -83,6 +97,10 @@ def _adarl_label(value) -> str:
 
 
 # ---------------------------------------------------------------------------- the table
+# the method every other is compared against (probability of improvement), and the paper's
+# Table 1 order of methods in reports; other algorithms follow
+REFERENCE = "adarl"
+REPORT_ORDER = ("adarl", "sac", "sac-parseval", "sac-sparse", "rnac")
 # the SAC family: configurations of adarl/algos/sac.py, trained by adarl/train/sac_loop.py
 SAC_FAMILY: dict[str, dict] = {
     "sac": {},
@@ -90,6 +108,13 @@ SAC_FAMILY: dict[str, dict] = {
     "sac-fixed-rank": {"bottleneck": ("actor:1", "critic:1"), "adapt_rank": False},
     "sac-parseval": {"parseval_coef": 1e-4, "init": "orthogonal"},
     "sac-sparse": {"sparse_width": 1024},
+}
+
+SAC_FAMILY_ROLES: dict[str, dict] = {
+    "adarl": {"report_label": _adarl_label, "adapts_rank": True},
+    "sac-fixed-rank": {"report_label": _fixed_rank_label, "rank_sweep": True},
+    "sac-parseval": {"best_of": "parseval_coef"},
+    "sac-sparse": {"report_label": _sparse_label},
 }
 
 # AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):
@@ -115,7 +140,7 @@ ALGORITHMS: dict[str, Algorithm] = {
             default_preset="paper",
             trainer="adarl.train.sac_loop:train",
             legacy_fields={"lr_schedule": "restart"},
-            report_label={"adarl": _adarl_label, "sac-fixed-rank": _fixed_rank_label}.get(name),
+            **SAC_FAMILY_ROLES.get(name, {}),
         )
         for name, fields in SAC_FAMILY.items()
     },
@@ -162,6 +187,13 @@ def report_label(values: Mapping, value: Callable | None = None) -> str:
 def keeps_best_policy(algo: str) -> bool:
     entry = ALGORITHMS.get(algo)
     return bool(entry and entry.best_policy)
+
+
+def role(algo: str, name: str):
+    """The protocol role `name` (adapts_rank, rank_sweep, best_of) of `algo`; False/None for
+    an algorithm this version does not know."""
+    entry = ALGORITHMS.get(algo)
+    return getattr(entry, name) if entry else getattr(Algorithm, name, None)
 
 
 def field_names(algo: str) -> set[str]:

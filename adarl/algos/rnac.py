@@ -21,7 +21,6 @@ Deviations from the original are listed in docs/rnac.md.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -32,6 +31,7 @@ import optax
 
 from adarl.envs.tasks import PHYSICS, VERSIONS
 from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
+from adarl.nets.gaussian import gaussian_entropy, gaussian_log_prob
 from adarl.nets.mlp import orthogonal
 
 UNCERTAINTY_SETS = ("ds", "ipm")
@@ -219,17 +219,6 @@ def actor_mean(actor: dict, obs, low, high, xp=jnp):
 def critic_value(critic: dict, obs, xp=jnp):
     """V(s), shape obs.shape[:-1]."""
     return (_trunk(critic["trunk"], obs, xp) @ critic["out"]["w"] + critic["out"]["b"])[..., 0]
-
-
-def gaussian_log_prob(action, mean, log_std, xp=jnp):
-    """log N(a; μ, diag σ²) summed over action dimensions."""
-    z = (action - mean) * xp.exp(-log_std)
-    return xp.sum(-0.5 * z**2 - log_std - 0.5 * math.log(2 * math.pi), axis=-1)
-
-
-def gaussian_entropy(log_std):
-    """Entropy of N(μ, diag σ²): Σ_i ½ + ½ log 2π + log σ_i."""
-    return jnp.sum(0.5 + 0.5 * math.log(2 * math.pi) + log_std, axis=-1)
 
 
 def sample_action(actor: dict, obs: np.ndarray, rng: np.random.Generator, low, high):

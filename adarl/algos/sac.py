@@ -27,6 +27,7 @@ from adarl.algos import replay
 from adarl.envs.tasks import PHYSICS, VERSIONS
 from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
 from adarl.nets import mlp, rank
+from adarl.nets.gaussian import gaussian_log_prob
 from adarl.nets.regularisers import parseval_penalty
 from adarl.policy import LOG_STD_MAX, LOG_STD_MIN
 
@@ -399,12 +400,6 @@ def sample_action(spec: Spec, actor, masks, obs, key):
     u = mu + std * jax.random.normal(key, mu.shape)
     logp = gaussian_log_prob(u, mu, log_std) - tanh_log_det(u)
     return squash(spec, u), logp
-
-
-def gaussian_log_prob(u, mu, log_std):
-    """Σ_i log N(u_i; μ_i, σ_i²) over the last axis."""
-    z = (u - mu) / jnp.exp(log_std)
-    return jnp.sum(-0.5 * z**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
 
 
 def tanh_log_det(u):

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from adarl.algos import registry
 from adarl.evaluation.collect import Spectrum
 from adarl.evaluation.runs import sort_methods
 from adarl.evaluation.stats import t_interval
@@ -419,7 +420,9 @@ def performance_profiles(
 
 
 @styled
-def probability_of_improvement(estimates: pd.DataFrame, reference: str = "adarl") -> Figure:
+def probability_of_improvement(
+    estimates: pd.DataFrame, reference: str = registry.REFERENCE
+) -> Figure:
     """P(reference > baseline) with 95% bootstrap intervals, one row per baseline.
     `estimates`: `baseline, point, low, high`."""
     baselines = sort_methods(estimates["baseline"].unique())[::-1]

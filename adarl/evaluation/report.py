@@ -56,8 +56,7 @@ from adarl.evaluation.runs import (
 from adarl.train import provenance
 from adarl.train.run_folder import checkpoint_dirs
 
-REFERENCE = "adarl"
-FIXED_RANK = "sac-fixed-rank"
+REFERENCE = registry.REFERENCE
 INDEX = "index.md"
 MARKER = "<!-- adarl report -->"
 
@@ -173,8 +172,8 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
         ]
     tasks, methods = sort_tasks(r.task for r in runs), sort_methods(r.label for r in runs)
     runs = sorted(runs, key=lambda r: (tasks.index(r.task), methods.index(r.label), str(r.path)))
-    fixed = [r for r in runs if r.algo == FIXED_RANK]
-    main = [r for r in runs if r.algo != FIXED_RANK] or fixed
+    fixed = [r for r in runs if registry.role(r.algo, "rank_sweep")]
+    main = [r for r in runs if not registry.role(r.algo, "rank_sweep")] or fixed
     finals = {
         r.path: collect.best_scores(r)
         if best_rnac and registry.keeps_best_policy(r.algo)
@@ -967,7 +966,7 @@ def bias_variance_section(fixed: list[Run], runs: list[Run], finals: dict, folde
 
 def ablation_section(runs: list[Run], folder: Path) -> Section:
     files, lines = [], []
-    adarl = [r for r in runs if r.algo == "adarl"]
+    adarl = [r for r in runs if registry.role(r.algo, "adapts_rank")]
     for task in sort_tasks(r.task for r in adarl):
         histories: dict[str, list[pd.DataFrame]] = {}
         steps: set[int] = set()

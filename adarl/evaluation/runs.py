@@ -14,6 +14,7 @@ from pathlib import Path
 
 import yaml
 
+from adarl.algos import registry
 from adarl.errors import UsageError
 from adarl.train.run_folder import checkpoint_dirs
 
@@ -297,7 +298,7 @@ def policy_file(run: Run, seed: int, step: int | None = None) -> Path:
 
 # ----------------------------------------------------------------------------- display order
 TASK_ORDER = ("hopper", "walker2d", "ant", "humanoid")
-METHOD_ORDER = ("adarl", "sac", "sac-parseval", "sac-sparse", "rnac")
+METHOD_ORDER = registry.REPORT_ORDER
 
 
 def sort_tasks(tasks: Iterable[str]) -> list[str]:

@@ -16,11 +16,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from adarl.algos import registry
 from adarl.evaluation import tables
 from adarl.evaluation.runs import Run, config_value, differing_fields, sort_tasks
 
-PARSEVAL = "sac-parseval"
-COEF = "parseval_coef"
+# the algorithm whose best setting per task the main table keeps, and that setting (the
+# registry's `best_of` role; the notes below are worded for Parseval's coefficient, its one user)
+((PARSEVAL, COEF),) = [(a.name, a.best_of) for a in registry.ALGORITHMS.values() if a.best_of]
 PARSEVAL_NOTE = "best of {n} coefficients (selected on the reported metric, as in the paper)"
 RNAC_CHECKPOINTS = ("final", "best")
 RNAC_BEST_LABEL = "best checkpoint"

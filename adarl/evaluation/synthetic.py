@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from adarl.algos import registry
 from adarl.policy import FORMAT, save
 
 DIMS = {"hopper": (11, 3), "walker2d": (17, 6), "ant": (105, 8), "humanoid": (348, 17)}
@@ -111,7 +112,7 @@ def write_run(
     rng = np.random.default_rng(zlib.crc32(f"{name}/{algo}/{task}".encode()))
     seeds = list(seeds)
     obs_dim, act_dim = DIMS[task]
-    adaptive = algo == "adarl"
+    adaptive = registry.role(algo, "adapts_rank")
     config = {
         "algo": algo,
         "task": task,

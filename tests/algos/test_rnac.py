@@ -63,19 +63,6 @@ def test_clipped_objective_matches_numpy_reference():
     np.testing.assert_allclose(np.asarray(grad)[~frozen], (ratio * adv)[~frozen], rtol=1e-5)
 
 
-def test_gaussian_log_prob_and_entropy():
-    rng = np.random.default_rng(2)
-    a, mean = rng.standard_normal((2, 7, 3))
-    log_std = rng.standard_normal(3) * 0.5
-    std = np.exp(log_std)
-    ref = np.sum(-((a - mean) ** 2) / (2 * std**2) - np.log(std) - 0.5 * np.log(2 * np.pi), -1)
-    np.testing.assert_allclose(rnac.gaussian_log_prob(a, mean, log_std), ref, rtol=1e-5)
-    np.testing.assert_allclose(rnac.gaussian_log_prob(a, mean, log_std, np), ref, rtol=1e-12)
-    np.testing.assert_allclose(
-        rnac.gaussian_entropy(log_std), np.sum(0.5 * np.log(2 * np.pi * np.e * std**2)), rtol=1e-5
-    )
-
-
 def test_ipm_penalty_value():
     critic = rnac.init_critic(np.random.default_rng(0), 11, (64, 64))
     critic["out"]["b"] = np.asarray([5.0], np.float32)  # the output bias is not in the norm

@@ -46,6 +46,8 @@ def test_nested_config_sections_and_seed_forms():
 def test_method_labels_tell_variants_apart():
     assert runs.method_label({"algo": "sac-fixed-rank", "rank": 7}) == "sac-fixed-rank r=7"
     assert runs.method_label({"algo": "adarl", "rank_rule": "ratio"}) == "adarl (ratio rule)"
+    assert runs.method_label({"algo": "sac-sparse", "sparse_width": 256}) == "sac-sparse w=256"
+    assert runs.method_label({"algo": "sac-sparse", "sparse_width": 1024}) == "sac-sparse"
     from adarl.algos.registry import DEFAULT_RANK_RULE
     from adarl.algos.sac import SACConfig
 
