@@ -27,6 +27,7 @@ from adarl.cli.train import add_arguments, build_config
         (["--task", "cartpole"], "cartpole"),
         (["--dynamics", "wobbly"], "wobbly"),
         (["--algo", "sac-parseval", "--parseval-coef", "-1"], "parseval-coef must be"),
+        (["--algo", "sac-parseval", "--parseval-coef", "0"], "must be > 0 for sac-parseval, got 0"),
         (["--algo", "sac-sparse", "--sparse-width", "-1"], "sparse-width must be"),
         (["--hidden", "64,0"], "hidden sizes must be"),
         (["--lanes", "0"], "lanes must be > 0, got 0"),
