@@ -190,7 +190,9 @@ def training_curve(run: Run) -> tuple[pd.DataFrame, str]:
 
 
 def rank_history(run: Run) -> pd.DataFrame:
-    """Rank of each bottleneck over training from train.csv: columns `step, seed, layer, rank`."""
+    """Rank of each bottleneck over training: columns `step, seed, layer, rank`, from train.csv's
+    logging points and, at the exact step of each truncation, its new rank (truncations.csv), so
+    that a step plot changes where the rank did, not at the next logging point."""
     log = read_table(run.path / "train.csv")
     columns = [c for c in log.columns if c.startswith("rank_")]
     if log.empty or not columns:
@@ -199,7 +201,13 @@ def rank_history(run: Run) -> pd.DataFrame:
         id_vars=["step", "seed"], value_vars=columns, var_name="layer", value_name="rank"
     )
     long["layer"] = long["layer"].str.removeprefix("rank_")
-    return long.dropna(subset=["rank"]).reset_index(drop=True)
+    long = long.dropna(subset=["rank"])
+    cuts = read_table(run.path / "truncations.csv")
+    if not cuts.empty:
+        cuts = cuts[["step", "seed", "layer", "new_rank"]].rename(columns={"new_rank": "rank"})
+        long = pd.concat([cuts, long], ignore_index=True)  # a truncation's row wins a tie
+        long = long.drop_duplicates(["step", "seed", "layer"], keep="first")
+    return long.sort_values(["step", "seed", "layer"], kind="stable").reset_index(drop=True)
 
 
 def truncation_steps(run: Run) -> list[int]:
