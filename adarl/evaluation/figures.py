@@ -103,9 +103,12 @@ def _log2_axis(ax, which: str) -> None:
     axis.set_minor_locator(matplotlib.ticker.NullLocator())
 
 
-def _rank_axes(ax, layer: str, title: str, intrinsic_rank, truncations: Sequence[int]) -> None:
+def _rank_axes(
+    ax, layer: str, title: str, intrinsic_rank, truncations: Sequence[int], legend: bool = True
+) -> None:
     """A rank-over-training panel's furniture: the intrinsic rank 2·d_a+1, the truncation steps,
-    the layer's title, axis labels, a log-2 rank axis and the legend."""
+    the layer's title, axis labels, a log-2 rank axis and (first panel only: the panels share
+    their lines) the legend."""
     if intrinsic_rank is not None:
         ax.axhline(intrinsic_rank, label=f"$2d_a+1$ = {intrinsic_rank}", **INTRINSIC_STYLE)
     for i, step in enumerate(truncations):
@@ -114,7 +117,8 @@ def _rank_axes(ax, layer: str, title: str, intrinsic_rank, truncations: Sequence
     ax.set_xlabel("environment steps")
     ax.set_ylabel("rank")
     _log2_axis(ax, "y")
-    ax.legend(loc="best")
+    if legend:
+        ax.legend(loc="best")
 
 
 def _by_seed(df: pd.DataFrame, x: str, y: str) -> tuple[np.ndarray, np.ndarray]:
@@ -167,7 +171,7 @@ def rank_trajectories(
         for seed, rows in data.groupby("seed"):
             rows = rows.sort_values("step")
             ax.plot(rows["step"], rows["rank"], drawstyle="steps-post", label=f"seed {seed}")
-        _rank_axes(ax, layer, title, intrinsic_rank, truncations)
+        _rank_axes(ax, layer, title, intrinsic_rank, truncations, legend=ax is axes[0])
     return fig
 
 
@@ -339,7 +343,7 @@ def rank_rule_ablation(
                 continue
             steps, values = _by_seed(data, "step", "rank")
             _band(ax, steps, values, rule, drawstyle="steps-post")
-        _rank_axes(ax, layer, title, intrinsic_rank, truncations)
+        _rank_axes(ax, layer, title, intrinsic_rank, truncations, legend=ax is axes[0])
     return fig
 
 

@@ -111,6 +111,7 @@ def test_rank_rule_ablation_one_line_per_rule(runs):
     fig = figures.rank_rule_ablation(histories, 7, "hopper")
     assert len(fig.axes) == 3
     assert labels(fig.axes[0]) == ["cumulative rule", "ratio rule", "$2d_a+1$ = 7"]
+    assert fig.axes[0].get_legend() and not any(ax.get_legend() for ax in fig.axes[1:])
     cumulative, ratio = fig.axes[0].get_lines()[:2]
     assert cumulative.get_ydata()[-1] < ratio.get_ydata()[-1]  # the ratio rule stalls
 
