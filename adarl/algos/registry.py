@@ -71,8 +71,9 @@ class Algorithm:
 
 
 # ---------------------------------------------------------------------------- report labels
-# AdaRL's default rank rule: runs with it are labelled plain `adarl`
+# AdaRL's default rank rule and threshold: runs with them are labelled plain `adarl`
 DEFAULT_RANK_RULE = "energy"
+DEFAULT_BETA = 0.98
 
 
 def _fixed_rank_label(value) -> str:
@@ -88,10 +89,11 @@ def _sparse_label(value) -> str:
 
 
 def _adarl_label(value) -> str:
-    """`adarl`, plus a non-default rank rule or the retain clause's tolerance."""
+    """`adarl`, plus a non-default rank rule, threshold beta or the retain clause's tolerance."""
     rule = str(value("rank_rule", "cumulative"))  # runs from before the field: Eq. 5
-    tolerance = value("retain_tolerance")
+    beta, tolerance = value("beta"), value("retain_tolerance")
     parts = [] if rule == DEFAULT_RANK_RULE else [f"{rule} rule"]
+    parts += [] if beta is None or float(beta) == DEFAULT_BETA else [f"beta {float(beta):g}"]
     parts += [] if tolerance is None else [f"retain {float(tolerance):g}"]
     return f"adarl ({', '.join(parts)})" if parts else "adarl"
 
