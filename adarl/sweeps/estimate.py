@@ -25,6 +25,7 @@ import io
 import json
 import math
 import os
+import statistics
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -118,9 +119,14 @@ def pick_rate(
     for level, pools, key in levels:
         for pool in pools:
             group = [m for m in pool if key(m) and m.train_s > 0 and m.steps > 0]
-            if group:  # pooled: total seed-steps over total seconds
+            if not group:
+                continue
+            if level in BORROWED:  # other algorithms or tasks: the median, so one very slow
+                # or fast network (sac-sparse, RNAC) does not set everyone's rate
+                rate = statistics.median(m.seed_steps_per_s for m in group)
+            else:  # pooled: total seed-steps over total seconds
                 rate = sum(m.seeds * m.steps for m in group) / sum(m.train_s for m in group)
-                return rate, level, tuple(sorted({m.source for m in group}))
+            return rate, level, tuple(sorted({m.source for m in group}))
     raise ValueError("no throughput measurement at all")
 
 
