@@ -127,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
         algo, config = run_folder.config_from_run(run_dir)
         with _tracked(args, run_dir, config, command):
             registry.trainer(algo)(config, run_dir, True, progress, command)
+        # a resumed `--preset quickstart` run reports like the run it continues
+        args.preset = preset_of(str(run_folder.load_config(run_dir).get("command", "")))
     else:
         algo, config = build_config(args)
         task = getattr(config, "task", "task")
@@ -139,6 +141,20 @@ def run(args: argparse.Namespace) -> int:
             registry.trainer(algo)(config, run_dir, False, progress, command)
     finish(run_dir, time.monotonic() - started, args.report, args.preset)
     return 0
+
+
+def preset_of(command: str) -> str | None:
+    """The `--preset` of a recorded `adarl train` command line (None without one)."""
+    try:
+        words = shlex.split(command)
+    except ValueError:  # a hand-edited, unbalanced command: no preset to honour
+        return None
+    for i, word in enumerate(words):
+        if word == "--preset" and i + 1 < len(words):
+            return words[i + 1]
+        if word.startswith("--preset="):
+            return word.partition("=")[2]
+    return None
 
 
 def wants_report(flag: bool | None, preset: str | None) -> bool:

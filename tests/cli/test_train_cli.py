@@ -194,6 +194,33 @@ def test_quickstart_reports_unless_told_not_to():
     assert wants_report(True, None)
 
 
+def test_resuming_a_run_of_a_reporting_preset_writes_its_report(tmp_path, monkeypatch):
+    import sys
+
+    from adarl.cli import train as train_cli
+    from adarl.evaluation import report
+
+    monkeypatch.setattr(report, "_figure", lambda folder, fig, stem: [])  # drawing: tested apart
+    run_dir = tmp_path / "r"
+    argv = ["train", "--preset", "smoke", "--algo", "sac", "--out", str(run_dir), "--no-progress"]
+    monkeypatch.setattr(sys, "argv", ["adarl", *argv])  # what the run records as its command
+    assert main(argv) == 0 and not (run_dir / "report").exists()
+    monkeypatch.setattr(train_cli, "REPORT_PRESETS", ("smoke",))
+    resume = ["train", "--resume", str(run_dir), "--no-progress"]
+    monkeypatch.setattr(sys, "argv", ["adarl", *resume])
+    assert main(resume) == 0
+    assert (run_dir / "report" / "index.md").is_file()
+
+
+def test_a_resumed_run_reports_as_its_recorded_preset_says():
+    from adarl.cli.train import preset_of
+
+    assert preset_of("adarl train --preset quickstart --seeds 0") == "quickstart"
+    assert preset_of("adarl train --algo sac --preset=smoke") == "smoke"
+    assert preset_of("adarl train --algo sac") is None
+    assert preset_of("adarl train --preset") is None and preset_of("adarl train 'x") is None
+
+
 def test_every_config_field_has_its_meaning_in_help(capsys):
     """A field's meaning is the comment next to it in its config class, shown by --help."""
     import dataclasses
