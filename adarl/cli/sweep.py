@@ -6,16 +6,21 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
+import textwrap
 from pathlib import Path
+
+from adarl.sweeps.spec import list_presets
 
 HELP = "run a sweep (tasks x algorithms x seeds) from a YAML file or preset, locally or on Ray"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    presets = textwrap.fill(
+        "presets: " + ", ".join(list_presets()), 78, subsequent_indent="  ", break_on_hyphens=False
+    )
     parser.epilog = (
-        "presets: smoke, paper-hopper-small, paper-table1, fixed-rank-sweep, fixed-rank-u,\n"
-        "  rank-rule-ablation\n"
+        f"{presets}\n"
         "examples:\n"
         "  adarl sweep smoke --dry-run\n"
         "  adarl sweep paper-hopper-small                 # again after a crash: resumes\n"

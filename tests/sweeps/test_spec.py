@@ -94,6 +94,7 @@ def test_presets_expand_to_the_documented_protocols():
         "repro-hopper",
         "repro-walker2d",
         "ratio-rule-hopper",
+        "ratio-rule-walker2d",
     }
     assert len(units["physics"]) == 8  # 2 tasks x physics consistent/ompo x models v5/v4
     table1 = units["paper-table1"]
@@ -154,14 +155,18 @@ def test_presets_expand_to_the_documented_protocols():
         (sparse,) = [u for u in repro if u.algo == "sac-sparse"]
         assert (sparse.seeds, sparse.total_steps) == ((0, 1, 2), 100_000)
         assert _flags(sparse)["--sparse-width"] == "256"
-    hopper_adarl = next(u for u in units["repro-hopper"] if u.algo == "adarl")
-    for unit in units["ratio-rule-hopper"]:  # comparable with repro-hopper's adarl
-        assert set(unit.seeds) < set(hopper_adarl.seeds)
-        assert _flags(unit)["--rank-rule"] == "ratio"
-        assert {
-            k: v for k, v in _flags(unit).items() if k not in ("--seeds", "--rank-rule", "--beta")
-        } == {k: v for k, v in _flags(hopper_adarl).items() if k != "--seeds"}
-    assert sorted(_flags(u)["--beta"] for u in units["ratio-rule-hopper"]) == ["0.1", "0.98"]
+    for task in ("hopper", "walker2d"):
+        adarl = next(u for u in units[f"repro-{task}"] if u.algo == "adarl")
+        ratio = units[f"ratio-rule-{task}"]
+        for unit in ratio:  # comparable with repro-<task>'s adarl
+            assert set(unit.seeds) < set(adarl.seeds)
+            assert _flags(unit)["--rank-rule"] == "ratio"
+            assert {
+                k: v
+                for k, v in _flags(unit).items()
+                if k not in ("--seeds", "--rank-rule", "--beta")
+            } == {k: v for k, v in _flags(adarl).items() if k != "--seeds"}
+        assert sorted(_flags(u)["--beta"] for u in ratio) == ["0.1", "0.98"]
 
 
 def test_the_files_preset_reaches_the_algorithms_that_have_it():
