@@ -127,8 +127,11 @@ def run(args: argparse.Namespace) -> int:
         algo, config = run_folder.config_from_run(run_dir)
         with _tracked(args, run_dir, config, command):
             registry.trainer(algo)(config, run_dir, True, progress, command)
-        # a resumed `--preset quickstart` run reports like the run it continues
-        args.preset = preset_of(str(run_folder.load_config(run_dir).get("command", "")))
+        # a resumed run reports like the run it continues (its --preset, its --report)
+        recorded = recorded_args(str(run_folder.load_config(run_dir).get("command", "")))
+        if recorded is not None:
+            args.preset = recorded.preset
+            args.report = recorded.report if args.report is None else args.report
     else:
         algo, config = build_config(args)
         task = getattr(config, "task", "task")
@@ -143,18 +146,24 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def preset_of(command: str) -> str | None:
-    """The `--preset` of a recorded `adarl train` command line (None without one)."""
+class _RaisingParser(argparse.ArgumentParser):
+    def error(self, message):  # noqa: D102
+        raise ValueError(message)
+
+
+def recorded_args(command: str) -> argparse.Namespace | None:
+    """The `adarl train` flags of a recorded command line, read by this command's own parser (so
+    abbreviations and `--flag=value` resolve as they did when it ran); None if it does not parse."""
     try:
         words = shlex.split(command)
-    except ValueError:  # a hand-edited, unbalanced command: no preset to honour
+    except ValueError:  # a hand-edited, unbalanced command
         return None
-    for i, word in enumerate(words):
-        if word == "--preset" and i + 1 < len(words):
-            return words[i + 1]
-        if word.startswith("--preset="):
-            return word.partition("=")[2]
-    return None
+    parser = _RaisingParser(add_help=False)
+    add_arguments(parser)
+    try:
+        return parser.parse_known_args(words[2:])[0]
+    except ValueError:
+        return None
 
 
 def wants_report(flag: bool | None, preset: str | None) -> bool:

@@ -212,13 +212,19 @@ def test_resuming_a_run_of_a_reporting_preset_writes_its_report(tmp_path, monkey
     assert (run_dir / "report" / "index.md").is_file()
 
 
-def test_a_resumed_run_reports_as_its_recorded_preset_says():
-    from adarl.cli.train import preset_of
+def test_a_resumed_run_reads_its_recorded_preset_and_report_flag():
+    from adarl.cli.train import recorded_args
 
-    assert preset_of("adarl train --preset quickstart --seeds 0") == "quickstart"
-    assert preset_of("adarl train --algo sac --preset=smoke") == "smoke"
-    assert preset_of("adarl train --algo sac") is None
-    assert preset_of("adarl train --preset") is None and preset_of("adarl train 'x") is None
+    def preset(command):
+        args = recorded_args(command)
+        return None if args is None else args.preset
+
+    assert preset("adarl train --preset quickstart --seeds 0") == "quickstart"
+    assert preset("adarl train --algo sac --preset=smoke") == "smoke"
+    assert preset("adarl train --pres quickstart") == "quickstart"  # argparse's abbreviation
+    assert preset("adarl train --algo sac --no-progress") is None
+    assert recorded_args("adarl train --algo sac --report").report is True
+    assert recorded_args("adarl train --preset") is None and recorded_args("adarl train 'x") is None
 
 
 def test_every_config_field_has_its_meaning_in_help(capsys):
