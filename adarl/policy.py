@@ -119,6 +119,18 @@ class NumpyPolicy:
             )
         )
 
+    def n_params_full(self) -> int:
+        """Parameters of the same policy at full rank: every bottleneck W1·W2 at its configured
+        width, which in adarl is the layer's output width (`mlp.make_layout`), whatever rank
+        training cut it to. Computed from the shapes, so it holds for every policy file."""
+        n = self.n_params()
+        for i in range(self.n_layers):
+            if str(self.arrays[f"l{i}_kind"]) == "bottleneck":
+                w1, w2 = self.arrays[f"l{i}_w1"], self.arrays[f"l{i}_w2"]
+                n_in, n_out = w1.shape[0], w2.shape[1]
+                n += n_in * n_out + n_out * n_out - w1.size - w2.size
+        return n
+
 
 def sparse_coding_step(x: np.ndarray, d: np.ndarray, eta: float, lam: float) -> np.ndarray:
     """One ISTA step from z₀ = x: ReLU(x + η(Dᵀx − DᵀDx) − ηλ), rows of `x` as samples."""

@@ -6,8 +6,8 @@ same run.
 
 Prints environment steps per second of training (environment steps, action selection, buffer
 writes and one gradient update per step; periodic evaluation and checkpoints excluded), for one
-seed and for five seeds in one process (summed over seeds; with the default lanes, and with all
-five in one lane), the ratio to Stable-Baselines3 SAC with the same networks and settings (when
+seed and for five seeds in one process (summed over seeds; one lane per seed, the default, and the
+vmapped layouts of earlier versions: 4 lanes, and all five in one lane), the ratio to Stable-Baselines3 SAC with the same networks and settings (when
 `pip install -e .[bench]` has installed it), the cost of a rank truncation relative to training,
 the masked-vs-compact bottleneck update cost, and RNAC (`ds` and `ipm`) when its benchmark module
 is present. Compilation is excluded (a warm-up runs first).
@@ -185,11 +185,17 @@ def main() -> int:
         if reference:
             line += f"   1 seed vs SB3: {one / reference:.2f}x"
         print(line)
-        lane, _ = training_rate(paper_config(algo, 5, lanes=1), args.steps // 3, args.warmup)
-        print(
-            f"       5 seeds in one lane (--lanes 1, all vmapped together): {5 * lane:8.1f} "
-            f"seed-steps/s ({5 * lane / one:.2f}x one seed); {jax.local_device_count()} devices"
-        )
+        for lanes, label in [
+            (4, "in 4 vmapped lanes (--lanes 4, the layout before)"),
+            (1, "in one lane (--lanes 1, all vmapped together)"),
+        ]:
+            lane, _ = training_rate(
+                paper_config(algo, 5, lanes=lanes), args.steps // 3, args.warmup
+            )
+            print(
+                f"       5 seeds {label}: {5 * lane:8.1f} seed-steps/s ({5 * lane / one:.2f}x "
+                f"one seed); {jax.local_device_count()} devices"
+            )
         if algo == "adarl":
             for label, config in [
                 ("truncation, retain test off", {"retain_tolerance": None}),

@@ -29,7 +29,7 @@ from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
 from adarl.nets import mlp, rank
 from adarl.nets.gaussian import gaussian_log_prob
 from adarl.nets.regularisers import parseval_penalty
-from adarl.policy import LOG_STD_MAX, LOG_STD_MIN
+from adarl.policy import LOG_STD_MAX, LOG_STD_MIN, NumpyPolicy
 
 
 # ============================================================================ config
@@ -46,9 +46,10 @@ class SACConfig:
     model_version: str = "v5"  # Gymnasium's v5 or v4 (the port of the paper's Gym v3) models
     seeds: tuple[int, ...] = (0,)  # seeds trained together in one process, e.g. 0-4
     total_steps: int = 1_000_000  # environment steps per seed
-    # the seeds form this many lanes (at most one per seed), each one vmapped update on its own
-    # device; a lane's environments step on the host while other lanes' updates run
-    lanes: int = 4
+    # 0: every seed is its own lane (its own XLA computations and bottleneck widths), so a seed's
+    # numbers never depend on the other seeds of the run; K ≥ 1: the earlier layout of K vmapped
+    # groups (run folders written before keep it), where they do
+    lanes: int = 0
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics
     activation: str = "relu"  # hidden-layer activation
@@ -136,7 +137,6 @@ class SACConfig:
             "log_every",
             "checkpoint_every",
             "eval_episodes",
-            "lanes",
             "retain_samples",
         ]
         for name in positive:
@@ -148,7 +148,7 @@ class SACConfig:
                     f"{name.replace('_', '-')} must be a multiple of update-every "
                     f"({self.update_every}), got {getattr(self, name)}"
                 )
-        for name in ("start_steps", "update_after", "warmup_steps", "keep_checkpoints"):
+        for name in ("start_steps", "update_after", "warmup_steps", "keep_checkpoints", "lanes"):
             if getattr(self, name) < 0:
                 raise UsageError(f"{name.replace('_', '-')} must be ≥ 0, got {getattr(self, name)}")
         if not self.seeds:
@@ -718,23 +718,31 @@ def with_widths(spec: Spec, widths: dict[str, int]) -> Spec:
     )
 
 
-def narrow_state(spec: Spec, state: dict) -> dict:
-    """Cut every bottleneck of `state` (any leading seed axes) to the widths of `spec`: the
-    factors W1[..., :w], W2[..., :w, :], their Adam moments and the rank masks. Exact when no
-    rank exceeds its new width (the cut components are zero)."""
+def resize_bottlenecks(spec: Spec, state: dict) -> dict:
+    """Store every bottleneck of `state` (any leading seed axes) at the widths of `spec`: the
+    factors W1[..., :w], W2[..., :w, :], their Adam moments and the rank masks are cut, or padded
+    with zeros, to w. Exact both ways when no rank exceeds the new width (the components past
+    the rank are zero)."""
+
+    def fit(x, axis: int, w: int):
+        axis %= x.ndim
+        if x.shape[axis] >= w:
+            return x[(slice(None),) * axis + (slice(0, w),)]
+        pad = [(0, 0)] * x.ndim
+        pad[axis] = (0, w - x.shape[axis])
+        return jnp.pad(x, pad) if isinstance(x, jax.Array) else np.pad(x, pad)
 
     def cut(layers, layout):
         out = list(layers)
         for i, layer in enumerate(layout):
             if layer[0] == "bottleneck":
                 w = layer[2]
-                out[i] = dict(
-                    layers[i], w1=layers[i]["w1"][..., :w], w2=layers[i]["w2"][..., :w, :]
-                )
+                w1, w2 = fit(layers[i]["w1"], -1, w), fit(layers[i]["w2"], -2, w)
+                out[i] = dict(layers[i], w1=w1, w2=w2)
         return out
 
     def cut_masks(masks, layout):
-        return [m if m is None else m[..., : layer[2]] for m, layer in zip(masks, layout)]
+        return [m if m is None else fit(m, -1, layer[2]) for m, layer in zip(masks, layout)]
 
     def cut_actor(tree):
         return dict(tree, trunk=cut(tree["trunk"], spec.actor))
@@ -789,26 +797,21 @@ def export_policy(
         "action_low": np.asarray(spec.act_low, np.float32),
         "action_high": np.asarray(spec.act_high, np.float32),
     }
-    n_full = 0
     for i, (layer, p) in enumerate(zip(spec.actor, actor["trunk"])):
         p = {k: np.asarray(v) for k, v in p.items()}
         out[f"l{i}_kind"] = np.array(layer[0])
         if layer[0] == "dense":
             out[f"l{i}_w"], out[f"l{i}_b"] = p["w"], p["b"]
-            n_full += p["w"].size + p["b"].size
         elif layer[0] == "bottleneck":
             r = int(np.asarray(masks[i]).sum())
             out[f"l{i}_w1"], out[f"l{i}_w2"], out[f"l{i}_b"] = p["w1"][:, :r], p["w2"][:r], p["b"]
-            n_full += p["w1"].size + p["w2"].size + p["b"].size
         else:
             out[f"l{i}_d"] = p["d"]
             out[f"l{i}_eta"], out[f"l{i}_lam"] = np.array(c.sparse_eta), np.array(c.sparse_lambda)
-            n_full += p["d"].size
     out["mean_w"] = np.asarray(actor["mu"]["w"])
     out["mean_b"] = np.asarray(actor["mu"]["b"])
-    n_full += out["mean_w"].size + out["mean_b"].size
     if log_std:
         out["log_std_w"] = np.asarray(actor["log_std"]["w"])
         out["log_std_b"] = np.asarray(actor["log_std"]["b"])
-    out["n_params_full"] = np.array(n_full)
+    out["n_params_full"] = np.array(NumpyPolicy(out).n_params_full())
     return out

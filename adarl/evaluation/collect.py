@@ -284,8 +284,7 @@ def spectra(run: Run) -> list[Spectrum]:
 # ----------------------------------------------------------------------------- policy sizes
 def policy_sizes(run: Run) -> pd.DataFrame:
     """Parameters of each seed's final policy: columns `seed, n_params, n_params_full`
-    (`n_params_full` is the same network at full rank; equal to `n_params` when the policy file
-    does not record it, i.e. the policy was never compressed)."""
+    (`n_params_full`: the same network at full rank, `NumpyPolicy.n_params_full`)."""
     from adarl.policy import load
 
     found = checkpoint_dirs(run.path)
@@ -293,9 +292,11 @@ def policy_sizes(run: Run) -> pd.DataFrame:
     if found:
         for seed, path in policy_files(found[-1]).items():
             policy = load(path)
-            full = policy.arrays.get("n_params_full")
-            n = policy.n_params()
             rows.append(
-                {"seed": seed, "n_params": n, "n_params_full": int(full) if full is not None else n}
+                {
+                    "seed": seed,
+                    "n_params": policy.n_params(),
+                    "n_params_full": policy.n_params_full(),
+                }
             )
     return pd.DataFrame(rows, columns=["seed", "n_params", "n_params_full"])

@@ -60,7 +60,6 @@ def export_policy(
         raise UsageError(f"{source} is not a readable adarl policy ({exc})") from exc
     atomic_write_bytes(out, source.read_bytes())
     n = policy.n_params()
-    full = policy.arrays.get("n_params_full")
     obs_dim, act_dim = policy_dims(policy)
     return Exported(
         source=source,
@@ -69,5 +68,5 @@ def export_policy(
         obs_dim=obs_dim,
         act_dim=act_dim,
         n_params=n,
-        n_params_full=int(full) if full is not None else n,
+        n_params_full=policy.n_params_full(),
     )

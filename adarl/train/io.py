@@ -481,7 +481,6 @@ RESUMABLE_EDITS = (
     "eval_every",
     "eval_episodes",
     "eval_dynamics",
-    "lanes",
     "eager_candidates",  # RNAC: the same transitions, computed another way
 )
 

@@ -5,10 +5,13 @@ of `adarl.algos.sac` is `vmap`ped over seeds, so all seeds advance in lock-step.
 the environments, collects `update_every` transitions per seed, then makes one jitted call that
 appends them to the device buffers and runs `update_every` gradient steps (`lax.scan`).
 
-The seeds are split into `lanes` (default 4, at most one per seed), each with its own vmapped
-state. JAX runs a lane's update asynchronously while the host steps the next lane's
-environments, so on a 2-core
-machine the simulator and the learner overlap. Exploration actions are sampled on the host
+Every seed is its own lane: its own state, its own XLA computations and, once AdaRL has cut
+its rank, its own bottleneck widths, so a seed's numbers are a function of (code, config, seed)
+alone, whichever seeds train beside it (vmapping several seeds into one computation changes the
+matmul kernels, and so the last bits, of every seed in it). JAX runs a lane's update
+asynchronously while the host steps the next lane's environments, so on a 2-core machine the
+simulator and the learner overlap. Run folders written before keep the layout they recorded
+(`lanes: K`: K vmapped groups sharing one width, the widest rank among all seeds). Exploration actions are sampled on the host
 (`NumpyPolicy.sample`, noise from each seed's NumPy generator) from a copy of the lane's actor
 taken after its update, so stepping a lane never waits behind another lane's update. Every seed
 still sees exactly Spinning Up's schedule: `update_every` steps with the current policy, then
@@ -58,7 +61,7 @@ BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
 
 @dataclasses.dataclass
 class Compiled:
-    """The jitted, seed-vmapped functions of one run (each lane size compiles its own)."""
+    """The jitted, seed-vmapped functions of one lane (each lane size and width compiles its own)."""
 
     collect: callable  # append rows only (before update_after)
     collect_and_update: callable
@@ -67,9 +70,9 @@ class Compiled:
     diagnostics: callable
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=64)
 def compile_functions(spec: sac.Spec) -> Compiled:
-    """Jitted functions for `spec` (cached: runs with the same spec share compilations)."""
+    """Jitted functions for `spec` (cached: lanes and runs with the same spec share them)."""
     c = spec.config
     vmap = jax.vmap
     append = functools.partial(sac.append_and_update, spec, n_updates=0)
@@ -103,14 +106,16 @@ def split_lanes(n_seeds: int, lanes: int) -> list[range]:
 
 @dataclasses.dataclass
 class Lane:
-    """A group of seeds trained by one vmapped update. Lanes take turns: while one lane's
-    update runs (JAX dispatches it asynchronously), the host steps the next lane's
-    environments, so the update and the simulator use both cores of the machine."""
+    """The seeds trained by one vmapped update (one seed, except in run folders written before).
+    Lanes take turns: while one lane's update runs (JAX dispatches it asynchronously), the host
+    steps the next lane's environments, so the update and the simulator use both cores."""
 
     seeds: range  # positions in Run.seeds
     device: jax.Device
     state: dict  # device state, leading axis = the lane's seeds
     builder: replay.ChunkBuilder
+    spec: sac.Spec  # the lane's bottleneck widths
+    fns: Compiled
     infos: list = dataclasses.field(default_factory=list)  # update metrics not yet logged
     actors: list | None = None  # host copies of the current policies; None = stale
 
@@ -141,9 +146,10 @@ class Run:
         self.spec = sac.make_spec(
             config, self.envs[0].observation_space.shape[0], space.shape[0], space.low, space.high
         )
-        self.fns = compile_functions(self.spec)
         self.layer_names = sac.bottleneck_names(config)
-        self.lane_seeds = split_lanes(self.n, config.lanes)
+        # lanes: 0, one lane per seed; K (run folders written before), K groups of one width
+        self.shared_widths = config.lanes > 0
+        self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
         io.check_memory(
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             f"the replay buffers ({self.n} seeds x buffer-size {config.buffer_size})",
@@ -173,15 +179,23 @@ class Run:
             o, _ = env.reset(seed=self.seeds[i])
             self.obs[i] = o
 
-    def set_lanes(self, state: dict, buffers: dict | None = None) -> None:
-        """Split a host state of all seeds (without buffers) into lanes, lane k on local device
-        k mod (number of devices); `buffers`: saved buffer rows of all seeds, or None (empty)."""
+    def set_lanes(
+        self, state: dict, buffers: dict | None = None, lane_widths: list | None = None
+    ) -> None:
+        """Split a host state of all seeds (without buffers, bottlenecks `self.spec` wide) into
+        lanes, lane k on local device k mod (number of devices); `buffers`: saved buffer rows of
+        all seeds, or None (empty); `lane_widths`: each lane's bottleneck widths (default
+        `self.spec`'s)."""
         c = self.config
         devices = jax.local_devices()
         self.lanes = []
         for k, seeds in enumerate(self.lane_seeds):
             device = devices[k % len(devices)]
-            part = jax.device_put(_take(state, slice(seeds.start, seeds.stop)), device)
+            spec = self.spec if lane_widths is None else sac.with_widths(self.spec, lane_widths[k])
+            part = _take(state, slice(seeds.start, seeds.stop))
+            if spec != self.spec:
+                part = sac.resize_bottlenecks(spec, part)
+            part = jax.device_put(part, device)
             buf = replay.empty_buffers(
                 len(seeds), c.buffer_size, self.spec.obs_dim, self.spec.act_dim
             )
@@ -195,16 +209,32 @@ class Run:
             builder = replay.ChunkBuilder(
                 len(seeds), c.update_every, self.spec.obs_dim, self.spec.act_dim
             )
-            self.lanes.append(Lane(seeds=seeds, device=device, state=part, builder=builder))
+            self.lanes.append(
+                Lane(
+                    seeds=seeds,
+                    device=device,
+                    state=part,
+                    builder=builder,
+                    spec=spec,
+                    fns=compile_functions(spec),
+                )
+            )
 
-    def gather(self, fn=None):
-        """`fn(lane.state)` (default: the state) of every lane on the host, concatenated along
-        the seed axis in seed order."""
-        parts = [jax.device_get(fn(lane.state) if fn else lane.state) for lane in self.lanes]
-        return _concat_lanes(parts)
+    def gather(self, fn):
+        """`fn(lane)` of every lane on the host, concatenated along the seed axis in seed order
+        (per-seed values: ranks, metrics, flags)."""
+        return _concat_lanes([jax.device_get(fn(lane)) for lane in self.lanes])
 
     def checkpoint_arrays(self) -> dict[str, np.ndarray]:
-        state = self.gather(lambda s: {k: v for k, v in s.items() if k != "buffer"})
+        """Everything to continue exactly; every lane's bottlenecks stored `self.spec` wide (the
+        configured width, or a legacy run's shared width), so a seed's arrays do not depend on
+        the widths of the other seeds."""
+
+        def stored(lane):
+            state = {k: v for k, v in lane.state.items() if k != "buffer"}
+            return state if lane.spec == self.spec else sac.resize_bottlenecks(self.spec, state)
+
+        state = self.gather(stored)
         arrays = io.flatten_tree(state, "state")
         bufs = [jax.device_get(lane.state["buffer"]) for lane in self.lanes]
         # only the rows written so far (plus the provisional one) are worth saving
@@ -225,7 +255,7 @@ class Run:
                 "JAX keys; it cannot be continued exactly here: train a new run"
             )
         if meta.get("bottleneck_widths"):
-            self.use_spec(sac.with_widths(self.spec, meta["bottleneck_widths"]))
+            self.spec = sac.with_widths(self.spec, meta["bottleneck_widths"])
         one = sac.init_state(self.spec, 0, with_buffer=False)
         template = jax.tree_util.tree_map(
             lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
@@ -242,7 +272,7 @@ class Run:
                 )
             buffers[k] = saved
         buffers["ptr"], buffers["size"] = arrays["buffer/ptr"], arrays["buffer/size"]
-        self.set_lanes(state, buffers)
+        self.set_lanes(state, buffers, meta.get("lane_bottleneck_widths"))
         self.n_updates = int(state["n_updates"][0])
         self.iteration_start = int(state["iteration_start"][0])
         self.obs = arrays["host/obs"].astype(np.float32)
@@ -300,7 +330,7 @@ class Run:
             actor = jax.device_get(lane.state["actor"])
             masks = jax.device_get(lane.state["masks"]["actor"])
             lane.actors = [
-                NumpyPolicy(sac.export_policy(self.spec, _take(actor, j), _take(masks, j), True))
+                NumpyPolicy(sac.export_policy(lane.spec, _take(actor, j), _take(masks, j), True))
                 for j in range(len(lane.seeds))
             ]
         return lane.actors
@@ -355,11 +385,11 @@ class Run:
             lane.builder.close(j, self.obs[i])
         rows, n_rows = jax.device_put(lane.builder.rows(), lane.device)
         if update:
-            lane.state, info = self.fns.collect_and_update(lane.state, rows, n_rows)
+            lane.state, info = lane.fns.collect_and_update(lane.state, rows, n_rows)
             lane.infos.append(info)
             lane.actors = None
         else:
-            lane.state, _ = self.fns.collect(lane.state, rows, n_rows)
+            lane.state, _ = lane.fns.collect(lane.state, rows, n_rows)
         lane.builder.clear()
 
     def train_chunk(self) -> None:
@@ -380,12 +410,16 @@ class Run:
         c = self.config
         if not c.adapt_rank or self.n_updates - self.iteration_start < c.truncate_every:
             return
-        old = self.gather(self.fns.ranks)
+        old = self.gather(_ranks)
         reports = []
+        full = _layer_widths(self.spec)
         for lane in self.lanes:
-            lane.state, report = self.fns.truncate(lane.state)
+            lane.state, report = lane.fns.truncate(lane.state)
             lane.actors = None
-            reports.append(jax.device_get(report))
+            report = jax.device_get(report)
+            for name, (s, *rest) in report.items():  # spectra of narrow lanes: zero-padded
+                report[name] = (_pad_last(s, full[name]), *rest)
+            reports.append(report)
         report = _concat_lanes(reports)
         self.iteration_start = self.n_updates
         spectra = {name: np.asarray(item[0]) for name, item in report.items()}
@@ -415,24 +449,25 @@ class Run:
         log = self.logs["truncations.csv"]
         log.write([{k: row[k] for k in log.columns} for row in rows])
         if c.compact_bottlenecks:
-            self.narrow_bottlenecks(self.gather(self.fns.ranks))
+            self.narrow_bottlenecks(self.gather(_ranks))
 
     def narrow_bottlenecks(self, ranks: dict) -> None:
-        """Store each bottleneck only as wide as the largest rank among all seeds (and recompile
-        the update for those shapes): the cut components are exactly zero."""
-        widths = {}
-        for key in sac.bottleneck_widths(self.spec):
-            net, _, i = key.partition(":")
-            names = [f"actor_{i}"] if net == "actor" else [f"q1_{i}", f"q2_{i}"]
-            widths[key] = int(max(np.max(ranks[n]) for n in names))
-        if widths != sac.bottleneck_widths(self.spec):
-            self.use_spec(sac.with_widths(self.spec, widths))
-            for lane in self.lanes:
-                lane.state = sac.narrow_state(self.spec, lane.state)
-
-    def use_spec(self, spec: sac.Spec) -> None:
-        self.spec = spec
-        self.fns = compile_functions(spec)
+        """Store each lane's bottlenecks only as wide as its largest rank (and recompile its
+        update for those shapes): the cut components are exactly zero. Legacy layouts share
+        one width, the largest rank among all seeds, which checkpoints store."""
+        for lane in self.lanes:
+            seeds = range(self.n) if self.shared_widths else lane.seeds
+            widths = {}
+            for key in sac.bottleneck_widths(lane.spec):
+                net, _, i = key.partition(":")
+                names = [f"actor_{i}"] if net == "actor" else [f"q1_{i}", f"q2_{i}"]
+                widths[key] = int(max(np.max(ranks[n][seeds.start : seeds.stop]) for n in names))
+            if widths != sac.bottleneck_widths(lane.spec):
+                lane.spec = sac.with_widths(lane.spec, widths)
+                lane.fns = compile_functions(lane.spec)
+                lane.state = sac.resize_bottlenecks(lane.spec, lane.state)
+        if self.shared_widths:
+            self.spec = self.lanes[0].spec
 
     def write_train_log(self, steps_per_s: float) -> None:
         if not self.lanes[0].infos:
@@ -445,8 +480,8 @@ class Run:
         mean = _concat_lanes(per_lane)
         for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
             self.watch.note_values(key, self.seeds, mean[key])
-        ranks = self.gather(self.fns.ranks)
-        diag = self.gather(self.fns.diagnostics)
+        ranks = self.gather(_ranks)
+        diag = self.gather(lambda lane: lane.fns.diagnostics(lane.state))
         rows = []
         for i, seed in enumerate(self.seeds):
             row = {
@@ -473,11 +508,15 @@ class Run:
         self.logs[rf.TRAIN_CSV].write(rows)
 
     def export_policies(self) -> list[dict]:
-        actor = self.gather(lambda s: s["actor"])
-        masks = self.gather(lambda s: s["masks"]["actor"])
-        return [
-            sac.export_policy(self.spec, _take(actor, i), _take(masks, i)) for i in range(self.n)
-        ]
+        policies = []
+        for lane in self.lanes:
+            actor = jax.device_get(lane.state["actor"])
+            masks = jax.device_get(lane.state["masks"]["actor"])
+            policies += [
+                sac.export_policy(lane.spec, _take(actor, j), _take(masks, j))
+                for j in range(len(lane.seeds))
+            ]
+        return policies
 
     def evaluate(self) -> None:
         from adarl.envs.rollout import run_episodes
@@ -515,6 +554,10 @@ class Run:
             {name: log.offset() for name, log in self.logs.items()},
         )
         meta["bottleneck_widths"] = sac.bottleneck_widths(self.spec)
+        if not self.shared_widths:
+            meta["lane_bottleneck_widths"] = [
+                sac.bottleneck_widths(lane.spec) for lane in self.lanes
+            ]
         policies = {
             f"policy_seed_{seed}.npz": to_bytes(arrays)
             for seed, arrays in zip(self.seeds, self.export_policies())
@@ -530,7 +573,7 @@ class Run:
 
     def check_divergence(self) -> None:
         """Stop the run (or warn once) on non-finite parameters, returns or logged losses."""
-        for name, ok in self.gather(_finite_parameters).items():
+        for name, ok in self.gather(lambda lane: _finite_parameters(lane.state)).items():
             self.watch.note(f"{name} parameters", [s for s, o in zip(self.seeds, ok) if not o])
         self.watch.note_values("episode return", self.seeds, self.ep_return)
         self.watch.check(self.step)
@@ -593,6 +636,25 @@ def _finite_parameters(state: dict) -> dict:
         "critic": finite(state["critic"]),
         "temperature": finite(state["log_alpha"]),
     }
+
+
+def _ranks(lane: Lane) -> dict:
+    return lane.fns.ranks(lane.state)
+
+
+def _layer_widths(spec: sac.Spec) -> dict[str, int]:
+    """Stored width of every bottleneck, keyed like `sac.bottleneck_names` (actor_1, q1_1, …)."""
+    widths = {}
+    for key, w in sac.bottleneck_widths(spec).items():
+        net, _, i = key.partition(":")
+        for name in [f"actor_{i}"] if net == "actor" else [f"q1_{i}", f"q2_{i}"]:
+            widths[name] = w
+    return widths
+
+
+def _pad_last(a: np.ndarray, n: int) -> np.ndarray:
+    """`a` zero-padded along its last axis to length n."""
+    return np.pad(a, [(0, 0)] * (a.ndim - 1) + [(0, n - a.shape[-1])])
 
 
 def _concat_lanes(parts: list):

@@ -316,7 +316,7 @@ def test_narrowing_bottlenecks_keeps_the_networks_function(adarl_run):
     ranks = {k: int(v) for k, v in sac.rank_state(spec, state).items()}
     widths = {"actor:1": ranks["actor_1"], "critic:1": max(ranks["q1_1"], ranks["q2_1"])}
     narrow_spec = sac.with_widths(spec, widths)
-    narrow = sac.narrow_state(narrow_spec, state)
+    narrow = sac.resize_bottlenecks(narrow_spec, state)
     assert narrow["actor"]["trunk"][1]["w1"].shape == (64, widths["actor:1"])
     assert narrow["critic"][1]["w2"].shape == (2, widths["critic:1"], 64)
     assert narrow["opt_critic"].mu[1]["w1"].shape == (2, 64, widths["critic:1"])
@@ -544,3 +544,33 @@ def test_autotuned_temperature_follows_the_entropy(target_entropy, falls):
     assert float(new["log_alpha"]) == pytest.approx(expected, rel=1e-5)
     assert (float(new["log_alpha"]) < float(state["log_alpha"])) == falls
     assert float(info["alpha"]) == pytest.approx(np.exp(float(new["log_alpha"])), rel=1e-6)
+
+
+def test_exported_policy_counts_full_rank_at_the_configured_width(adarl_run):
+    """After a cut (and after narrowing the stored width), the policy file's full-rank size is
+    still the configured network's: obs→64, a 64·64 + 64·64 bottleneck, 64→act (counted by
+    hand), while its stored size shrinks with the rank."""
+    from adarl.policy import NumpyPolicy
+
+    spec, _, state = adarl_run
+    state, _ = sac.truncate(spec, state)
+    r = int(sac.rank_state(spec, state)["actor_1"])
+    assert r < 64
+    narrow_spec = sac.with_widths(spec, {"actor:1": r, "critic:1": 64})
+    narrow = sac.resize_bottlenecks(narrow_spec, state)
+    full = (OBS * 64 + 64) + (64 * 64 + 64 * 64 + 64) + (64 * ACT + ACT)
+    for s, st in ((spec, state), (narrow_spec, narrow)):
+        policy = NumpyPolicy(sac.export_policy(s, st["actor"], st["masks"]["actor"]))
+        assert int(policy.arrays["n_params_full"]) == policy.n_params_full() == full
+        assert policy.n_params() == full - 2 * 64 * (64 - r)
+
+
+def test_resizing_bottlenecks_pads_with_zeros_and_cuts_back_exactly(adarl_run):
+    spec, _, state = adarl_run
+    state, _ = sac.truncate(spec, state)
+    ranks = sac.rank_state(spec, state)
+    widths = {"actor:1": int(ranks["actor_1"]), "critic:1": int(max(ranks["q1_1"], ranks["q2_1"]))}
+    narrow = sac.resize_bottlenecks(sac.with_widths(spec, widths), state)
+    wide = sac.resize_bottlenecks(spec, jax.device_get(narrow))
+    for a, b in zip(jax.tree_util.tree_leaves(wide), jax.tree_util.tree_leaves(state)):
+        np.testing.assert_array_equal(a, b)
