@@ -23,7 +23,9 @@ At its default an optional parameter leaves the model as the other parameters ma
 
 `ompo` physics (`ModelEditor`) instead writes the same parameters into the compiled default model,
 as OMPO's `*_random.py` envs do: lengths only move `body_pos` and resize `geom_size`, so masses,
-inertias and the bounding radii `geom_rbound` stay those of Gymnasium's robot.
+inertias and the bounding radii `geom_rbound` stay those of Gymnasium's robot; `geom_aabb`, which
+MuJoCo 2.x (OMPO's) did not have, is set so that MuJoCo's broadphase boxes are 2.x's (see
+`ModelEditor`).
 """
 
 from __future__ import annotations
@@ -144,6 +146,7 @@ def nominal_masses(task: str, physics: str, version: str = "v5") -> dict[str, fl
 _EDITED = (
     "body_pos",
     "geom_size",
+    "geom_aabb",
     "body_mass",
     "body_inertia",
     "geom_friction",
@@ -162,11 +165,25 @@ class ModelEditor:
     ``geom_size[torso_geom][1] = L`` and ``geom_size[foot][1] = F`` (both feet), and
     (ant_random.py, humanoid_random.py) ``opt.gravity = (0, 0, -g)``, ``opt.wind = (-W, 0, 0)``
     with air (density 1.2, viscosity 2e-5). Nothing is recompiled: masses, inertias, `geom_rbound`
-    (which MuJoCo's plane-contact filter reads, in 2.1 as in 4.0) and the other derived constants
-    stay the default model's. The generic parameters scale the compiled fields they act on
-    (`body_mass` and `body_inertia`, `geom_friction`, `dof_damping`); `stiffness` writes
-    `jnt_stiffness` and `qpos_spring`. Every field is written absolutely from a snapshot of the
-    default model, so a parameter at its default leaves its fields at Gymnasium's values.
+    and the other derived constants stay the default model's. The generic parameters scale the
+    compiled fields they act on (`body_mass` and `body_inertia`, `geom_friction`, `dof_damping`);
+    `stiffness` writes `jnt_stiffness` and `qpos_spring`. Every field is written absolutely from a
+    snapshot of the default model, so a parameter at its default leaves its fields at Gymnasium's
+    values.
+
+    Contacts are those OMPO's MuJoCo 2.1 (mujoco-py) computed on the edited robot. 2.x selected
+    geom pairs with `geom_rbound` alone: a body's broadphase box was its geoms' bounding-sphere
+    boxes, and a pair was dropped when the spheres (a plane: the plane and the sphere) were apart;
+    OMPO's edit left `geom_rbound` stale there too, so it stays stale here. MuJoCo >= 3.8 (4.0
+    here) boxes each geom by the intersection of its sphere box and its `geom_aabb` box, so the
+    stale aabb of a grown geom drops pairs 2.x kept, and a refreshed one drops others (a tight box
+    around one geom no longer meets the stale sphere box of the other). While the torso or a foot
+    is resized, every robot geom's aabb is therefore the box of its bounding sphere
+    (`sphere_boxes`), which makes MuJoCo's broadphase box exactly 2.x's. Measured with
+    bench/ompo_refresh.py (docs/envs.md): a random-action Hopper at torso 0.6 / foot 0.59 leaves
+    2.x's contacts after 603 env steps with the stale aabb, 919 with the refreshed aabb, 220 with
+    both bounds refreshed; Walker2d's robot geoms do not collide with each other (conaffinity 0),
+    and the floor's pairs skip the broadphase, so its trajectories do not change.
     """
 
     def __init__(self, task: str | TaskSpec, model: mujoco.MjModel):
@@ -184,6 +201,7 @@ class ModelEditor:
             self._feet = [model.geom(n).id for n in layout.foot_geoms]
             # 1.25 - 0.2 = 1.05: OMPO's hip height, the torso's lower end
             self._hip_z = float(model.body_pos[self._torso][2] + model.body_pos[self._hips[0]][2])
+            self._robot = np.flatnonzero(model.geom_bodyid != 0)  # geoms the broadphase boxes
         self._stiff = [
             (model.joint(n).id, model.jnt_qposadr[model.joint(n).id])
             for n in self.task.stiffness_joints
@@ -202,6 +220,8 @@ class ModelEditor:
                 m.geom_size[self._torso_geom, 1] = length
             if params["foot_length"] != defaults["foot_length"]:
                 m.geom_size[self._feet, 1] = params["foot_length"]
+            if not np.array_equal(m.geom_size, base["geom_size"]):
+                m.geom_aabb[self._robot] = sphere_boxes(m.geom_rbound[self._robot])
         m.body_mass[:] = base["body_mass"] * params["mass_scale"]
         m.body_inertia[:] = base["body_inertia"] * params["mass_scale"]
         m.geom_friction[:] = base["geom_friction"] * params["friction_scale"]
@@ -222,6 +242,16 @@ class ModelEditor:
         opt.density, opt.viscosity = self.task.medium or (density, viscosity)
         set_body_masses(m, self.task, params)
         return m
+
+
+def sphere_boxes(rbound: np.ndarray) -> np.ndarray:
+    """`geom_aabb` rows (centre, half-sizes in the geom frame) that make MuJoCo's broadphase box
+    of each geom the box of its bounding sphere, as in MuJoCo 2.x: cubes of half-size `rbound`
+    about the geom centre. MuJoCo takes, per axis, the tighter of the sphere box and the rotated
+    aabb box, and a cube's rotated box is never tighter than the sphere's (a unit vector's L1
+    norm is >= 1), so the sphere box is what remains."""
+    rbound = np.asarray(rbound, dtype=float)
+    return np.concatenate([np.zeros((len(rbound), 3)), np.repeat(rbound[:, None], 3, 1)], 1)
 
 
 def set_body_masses(model: mujoco.MjModel, task: TaskSpec, params: dict[str, float]) -> None:
