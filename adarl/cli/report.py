@@ -23,8 +23,10 @@ DESCRIPTION = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "run_dirs", nargs="+", metavar="RUN_DIR", help="run folders, or folders holding them"
-    )
+        "run_dirs", nargs="+", metavar="RUN_DIR",
+        help="run folders, or folders holding them; or earlier reports (or their "
+        "tables/scores.csv) to recompute Table 1 and the statistics from their per-seed scores",
+    )  # fmt: skip
     parser.add_argument("--out", required=True, metavar="REPORT_DIR", help="report folder")
     parser.add_argument(
         "--bootstrap-reps", type=int, default=10_000, help="bootstrap resamples (default 10000)"

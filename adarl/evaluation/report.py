@@ -126,6 +126,9 @@ def build_report(
     if options.last_k < 1:
         raise UsageError(f"--last-k must be ≥ 1, got {options.last_k}")
     check_choice("--rnac-checkpoint", options.rnac_checkpoint, selection.RNAC_CHECKPOINTS)
+    score_files = [scores_file(p) for p in paths]
+    if any(score_files):
+        return _build_from_scores(paths, score_files, out, options)
     runs, notes = usable_runs(find_runs(paths), options.skip_incomplete)
     check_rows(runs)
     for contrast in options.contrasts:
@@ -139,6 +142,81 @@ def build_report(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+def scores_file(path: str | os.PathLike) -> Path | None:
+    """The `tables/scores.csv` that `path` names (the file itself, or an earlier report folder
+    holding it); None for anything else (run folders)."""
+    path = Path(path)
+    if path.is_file() and path.name == SCORES_CSV:
+        return path
+    index, found = path / INDEX, path / "tables" / SCORES_CSV
+    if index.is_file() and found.is_file() and MARKER in index.read_text(encoding="utf-8"):
+        return found
+    return None
+
+
+def _build_from_scores(paths, score_files, out: Path, options: ReportOptions) -> Path:
+    """Table 1 and the statistics recomputed from earlier reports' `tables/scores.csv`."""
+    if not all(score_files):
+        bad = next(p for p, f in zip(paths, score_files) if f is None)
+        raise UsageError(
+            f"{bad}: give either run folders or earlier reports (their tables/{SCORES_CSV}), "
+            "not both"
+        )
+    if options.contrasts:
+        raise UsageError("--contrast needs run folders (their configs), not scores.csv")
+    scores = pd.concat([read_scores(f) for f in score_files], ignore_index=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.tmp-"))
+    try:
+        write_scores_report(scores, [str(f) for f in score_files], tmp, options)
+        _swap_into_place(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def read_scores(path: Path) -> pd.DataFrame:
+    """An earlier report's scores.csv, checked for the columns a report needs."""
+    scores = pd.read_csv(path)
+    missing = [c for c in ("task", "method", "run", "seed", "score") if c not in scores]
+    if missing:
+        raise UsageError(f"{path} lacks the column(s) {', '.join(missing)} of a report's scores")
+    return scores
+
+
+def write_scores_report(
+    scores: pd.DataFrame, sources: list[str], folder: Path, options: ReportOptions
+) -> None:
+    """The tables of scores (Table 1, aggregate, per task, differences, probability of
+    improvement, profiles) from a scores table alone: the rows with a `table1_method` under
+    that label (Parseval's selection and the fixed-rank sweep as the original report made
+    them)."""
+    (folder / "tables").mkdir(parents=True)
+    (folder / "figures").mkdir()
+    notes: list[str] = []
+    if "table1_method" in scores:
+        scores = scores[scores["table1_method"].notna()].assign(method=scores["table1_method"])
+    scores = scores.reset_index(drop=True)
+    k = int(scores["last_k"].max()) if "last_k" in scores and scores["last_k"].notna().any() else 0
+    note = ScoreNote(
+        score_line(scores, k) if k else "",
+        " or ".join(dict.fromkeys(scores.get("final_from", pd.Series(dtype=str)).dropna())),
+    )
+    sections = [
+        table1_section(scores, folder, (), note),
+        *statistics_sections(scores, folder, options, notes, note),
+    ]
+    lines = [MARKER, "# adarl report", "", f"Made by adarl {__version__} from the per-seed scores "
+             f"of {', '.join(f'`{s}`' for s in sources)} (no run folders: no curves, behaviour, "
+             "robustness or contrasts)."]  # fmt: skip
+    lines += _section_lines(folder, sections)
+    lines += ["", "## Commands", "", "```sh", options.command or "adarl report …", "```"]
+    if notes:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
+    _write(folder, INDEX, "\n".join(lines) + "\n")
 
 
 def check_output(out: Path) -> None:
@@ -229,7 +307,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     score_note = ScoreNote(score_line(scores, options.last_k), final_sources(finals.values()))
 
     sections = [runs_section(runs, finals, folder)]
-    sections.append(scores_section(_long_scores(runs, finals), folder))
+    sections.append(scores_section(_long_scores(runs, finals), scores, finals, options, folder))
     sections.append(
         table1_section(scores, folder, protocol_notes(runs, parseval, options), score_note)
     )
@@ -358,15 +436,36 @@ def few_evaluations_notes(scores: pd.DataFrame, k: int) -> list[str]:
     ]
 
 
-def scores_section(scores: pd.DataFrame, folder: Path) -> Section:
-    """`tables/scores.csv`: every seed's scores, the input of Table 1 and the statistics."""
-    columns = ["task", "method", "run", *SCORE_COLUMNS]
-    path = _write(folder, "tables/scores.csv", _csv(scores.reindex(columns=columns)))
+SCORES_CSV = "scores.csv"
+
+
+def scores_section(
+    scores: pd.DataFrame, table1: pd.DataFrame, finals: dict, options: ReportOptions, folder: Path
+) -> Section:
+    """`tables/scores.csv`: every seed's scores, the input of Table 1 and the statistics, with
+    `table1_method` (its label in Table 1 and the statistics, empty for runs they leave out),
+    `last_k` and where the scores came from: `adarl report tables/scores.csv` recomputes the
+    tables from it alone."""
+    if not scores.empty:
+        by_run = {str(path): scored for path, scored in finals.items()}
+        labels = table1[["run", "seed", "method"]].rename(columns={"method": "table1_method"})
+        scores = scores.merge(labels, on=["run", "seed"], how="left").assign(
+            last_k=options.last_k,
+            score_from=lambda df: df["run"].map(lambda r: by_run[r][1]),
+            final_from=lambda df: df["run"].map(lambda r: final_sources([by_run[r]])),
+        )
+    columns = ["task", "method", "run", *SCORE_COLUMNS, "table1_method", "last_k", "score_from",
+               "final_from"]  # fmt: skip
+    # full precision: a report recomputed from this file gives the same tables
+    path = _write(
+        folder, f"tables/{SCORES_CSV}", scores.reindex(columns=columns).to_csv(index=False)
+    )
     text = (
         "Every seed's score (the tables' primary score, `score`) and final-checkpoint score "
         "(`final`), with the evaluations averaged: the input of Table 1, the statistics and the "
-        "comparisons below (Parseval: the selected coefficient's runs; `sac-fixed-rank`: the "
-        "bias–variance table).\n"
+        "comparisons below (column `table1_method`: Parseval's selected coefficient, not the "
+        "fixed-rank sweep). `adarl report <this report> --out DIR` recomputes those tables "
+        "from this file alone.\n"
     )
     return Section("Scores per seed", text, [path], empty=scores.empty)
 
@@ -1422,6 +1521,26 @@ def write_index(
             [[t, m, f"{s:,}" if s is not None else "—", seeds] for t, m, s, seeds in budgets],
         ),
     ]
+    lines += _section_lines(folder, sections)
+    lines += ["", "## Commands", "", "Training:", "", "```sh"]
+    lines += [r.command or f"# {r.path}: no command recorded in config.yaml" for r in runs]
+    lines += ["```"]
+    evaluations = [ev.meta.get("command") for r in runs for ev in collect.evaluations(r)]
+    evaluations = list(dict.fromkeys(c for c in evaluations if c))
+    if evaluations:
+        lines += ["", "Evaluation:", "", "```sh", *evaluations, "```"]
+    lines += ["", "This report:", "", "```sh", options.command or "adarl report …", "```"]
+    hidden = [s.title for s in sections if s.empty]
+    if hidden:
+        notes = [*notes, f"Not shown (nothing to show for these runs): {', '.join(hidden)}."]
+    if notes:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
+    _write(folder, INDEX, "\n".join(lines) + "\n")
+
+
+def _section_lines(folder: Path, sections: list[Section]) -> list[str]:
+    """index.md's lines for `sections` (those with something to show): text, figures, files."""
+    lines = []
     for section in (s for s in sections if not s.empty):
         lines += ["", f"## {section.title}", "", section.text.rstrip()]
         pngs = [f for f in section.files if f.suffix == ".png"]
@@ -1438,17 +1557,4 @@ def write_index(
                 "Files: "
                 + ", ".join(f"[{f.name}]({f.relative_to(folder).as_posix()})" for f in others),
             ]
-    lines += ["", "## Commands", "", "Training:", "", "```sh"]
-    lines += [r.command or f"# {r.path}: no command recorded in config.yaml" for r in runs]
-    lines += ["```"]
-    evaluations = [ev.meta.get("command") for r in runs for ev in collect.evaluations(r)]
-    evaluations = list(dict.fromkeys(c for c in evaluations if c))
-    if evaluations:
-        lines += ["", "Evaluation:", "", "```sh", *evaluations, "```"]
-    lines += ["", "This report:", "", "```sh", options.command or "adarl report …", "```"]
-    hidden = [s.title for s in sections if s.empty]
-    if hidden:
-        notes = [*notes, f"Not shown (nothing to show for these runs): {', '.join(hidden)}."]
-    if notes:
-        lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
-    _write(folder, INDEX, "\n".join(lines) + "\n")
+    return lines

@@ -175,6 +175,19 @@ def test_last_k(tmp_path, capsys, no_figures):
     _fails([*argv, "--last-k", "0"], capsys, "--last-k must be ≥ 1, got 0")
 
 
+def test_a_report_recomputes_its_tables_from_its_scores(built, sweep, tmp_path, no_figures, capsys):
+    out = tmp_path / "again"
+    assert main(["report", str(built), "--out", str(out), "--bootstrap-reps", "200"]) == 0
+    for name in ("table1.csv", "per_task.csv", "aggregate.csv", "differences.csv",
+                 "probability_of_improvement.csv", "performance_profiles.csv"):  # fmt: skip
+        assert (out / "tables" / name).read_text() == (built / "tables" / name).read_text(), name
+    assert "from the per-seed scores of" in (out / "index.md").read_text()
+    csv = str(built / "tables" / "scores.csv")
+    _fails(["report", csv, str(sweep), "--out", str(tmp_path / "x")], capsys, "not both")
+    _fails(["report", csv, "--out", str(tmp_path / "x"), "--contrast", "algo"], capsys,
+           "--contrast needs run folders")  # fmt: skip
+
+
 def test_index_links_everything_and_states_budget_seeds_and_commands(built):
     index = (built / "index.md").read_text()
     for text in ("## Budget and seeds", "10,000", "0 1 2", "## Table 1", "## Robustness",
