@@ -12,8 +12,9 @@ the root body (recorded by `adarl evaluate`; NaN when only the training log exis
 * **stands**: the episodes run to the limit but the robot moves less than `MOVING_DISTANCE`
   metres (a Hopper that only balances drifts well under 1 m in 1,000 steps);
 * **moves**: the episodes are long (at least `LONG_LENGTH` of the limit) and the robot travels at
-  least `MOVING_DISTANCE` metres (Hopper seeds that hop travel 5–12 m in our 100k-step runs;
-  falling ones lunge 1–4 m before they fall, in under 40% of the limit);
+  least `MOVING_DISTANCE` metres (in the 100k-step Hopper and Walker2d runs of
+  docs/experiments/repro-*, seeds that hop or walk travel 5.1–12.6 m in 518–1,000 steps, seeds
+  that fall 0.6–4.9 m in 72–425 steps, seeds that stand 0.5–0.8 m in 1,000);
 * **stands or moves**: the episodes run to the limit and the distance was not recorded, so
   standing and moving cannot be told apart.
 
