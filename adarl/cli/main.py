@@ -1,7 +1,8 @@
 """`adarl` entry point.
 
-Each command is a module in `adarl.cli` exposing `HELP` (one line), `add_arguments(parser)` and
-`run(args) -> int`. Modules keep heavy imports (JAX, MuJoCo) inside `run` so `adarl --help` is fast.
+Each command is a module in `adarl.cli` exposing `HELP` (one line; `DESCRIPTION`, if any, for its
+`--help`), `add_arguments(parser)` and `run(args) -> int`. Modules keep heavy imports (JAX,
+MuJoCo) inside `run` so `adarl --help` is fast.
 """
 
 from __future__ import annotations
@@ -50,7 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
             if exc.name != module_name:
                 raise
             continue  # command not built yet
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        description = getattr(module, "DESCRIPTION", module.HELP)
+        p = sub.add_parser(name, help=module.HELP, description=description)
         module.add_arguments(p)
         add_common_arguments(p)
         p.set_defaults(_run=module.run)

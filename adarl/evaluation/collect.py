@@ -16,12 +16,13 @@ import numpy as np
 import pandas as pd
 
 from adarl.evaluation.evaluate import EVALUATIONS_DIR
-from adarl.evaluation.runs import Run, checkpoint_step, policy_files
+from adarl.evaluation.runs import Run, checkpoint_step, config_value, policy_files
 from adarl.train.io import read_csv
 from adarl.train.run_folder import checkpoint_dirs
 
 NOMINAL = "nominal"
 CURVE_BINS = 50
+MAX_EPISODE_STEPS = 1000  # the environments' time limit (`adarl.envs.make`), `adarl evaluate`'s
 
 
 def read_table(path: Path) -> pd.DataFrame:
@@ -89,14 +90,18 @@ def final_scores(run: Run) -> tuple[pd.DataFrame, str]:
 def final_behaviour(run: Run) -> pd.DataFrame:
     """What each seed's final policy does on nominal dynamics, from the episodes behind its final
     return: columns `seed, length, distance` (means over episodes; `distance`, the root body's
-    forward displacement, is recorded by `adarl evaluate` only, else NaN)."""
-    episodes, _ = final_nominal_episodes(run)
+    forward displacement, is recorded by `adarl evaluate` only, else NaN) and `max_length`, the
+    time limit of those episodes (`adarl evaluate`'s full-length episodes, or the run's
+    `max_episode_steps` for eval.csv)."""
+    episodes, note = final_nominal_episodes(run)
     columns = ["length", "distance"]
     if episodes.empty:
-        return pd.DataFrame(columns=["seed", *columns])
+        return pd.DataFrame(columns=["seed", *columns, "max_length"])
     present = [c for c in columns if c in episodes]
-    means = episodes.groupby("seed")[present].mean().reindex(columns=columns)
-    return means.reset_index()
+    means = episodes.groupby("seed")[present].mean().reindex(columns=columns).reset_index()
+    logged = note.startswith("eval.csv")
+    limit = config_value(run.config, "max_episode_steps") if logged else None
+    return means.assign(max_length=int(limit or MAX_EPISODE_STEPS))
 
 
 def final_nominal_episodes(run: Run) -> tuple[pd.DataFrame, str]:
@@ -120,6 +125,53 @@ def final_nominal_episodes(run: Run) -> tuple[pd.DataFrame, str]:
     at_last = log[log["step"] == log.groupby("seed")["step"].transform("max")]
     steps = sorted(int(s) for s in at_last["step"].unique())
     return at_last, f"eval.csv at step {', '.join(map(str, steps))}"
+
+
+def score_dynamics(log: pd.DataFrame) -> str | None:
+    """The dynamics whose evaluations make a run's score: `nominal` when eval.csv has it, else
+    the first dynamics it lists (`--eval-dynamics`); None for an empty log."""
+    if log.empty or "dynamics" not in log:
+        return None
+    labels = list(dict.fromkeys(log["dynamics"]))
+    return NOMINAL if NOMINAL in labels else labels[0]
+
+
+def last_evaluations(log: pd.DataFrame, k: int) -> pd.DataFrame:
+    """Each seed's score from eval.csv rows of one dynamics (`step, seed, episode, return`): the
+    mean over its last `k` evaluations (fewer if it has fewer) of each evaluation's mean return
+    over its episodes, (1/k) Σ_{j=m−k+1..m} (1/E_j) Σ_e R_{j,e}. Columns `seed, score,
+    evaluations` (how many were averaged), `first_step, last_step` (of those) and `episodes`
+    (the fewest episodes in any of them)."""
+    columns = ["seed", "score", "evaluations", "first_step", "last_step", "episodes"]
+    if log.empty:
+        return pd.DataFrame(columns=columns)
+    per_eval = log.groupby(["seed", "step"], as_index=False).agg(
+        ret=("return", "mean"), episodes=("return", "size")
+    )
+    last = per_eval.sort_values(["seed", "step"]).groupby("seed").tail(k)
+    out = last.groupby("seed", as_index=False).agg(
+        score=("ret", "mean"),
+        evaluations=("ret", "size"),
+        first_step=("step", "min"),
+        last_step=("step", "max"),
+        episodes=("episodes", "min"),
+    )
+    return out[columns].astype({"seed": int})
+
+
+def last_k_scores(run: Run, k: int) -> tuple[pd.DataFrame, str]:
+    """`last_evaluations` of the run's eval.csv under `score_dynamics`, and a note saying where
+    the scores came from (empty with note "none" when the run logged no evaluation)."""
+    log = read_table(run.path / "eval.csv")
+    dynamics = score_dynamics(log)
+    if dynamics is None:
+        return last_evaluations(log.iloc[0:0], k), "none"
+    scores = last_evaluations(log[log["dynamics"] == dynamics], k)
+    used = sorted(set(scores["evaluations"]))
+    steps = sorted({*scores["first_step"], *scores["last_step"]})
+    span = f"steps {steps[0]}–{steps[-1]}" if len(steps) > 1 else f"step {steps[0]}"
+    count = "/".join(map(str, used))
+    return scores, f"eval.csv, mean of the last {count} evaluation(s) ({span}, {dynamics})"
 
 
 def best_scores(run: Run) -> tuple[pd.DataFrame, str]:

@@ -8,14 +8,17 @@ report (if any) stays as it was.
 Layout of the report folder::
 
     index.md                 links everything; budget, seeds, the exact commands
-    tables/table1.{md,tex,csv}   final nominal return per task × method (mean ± std over seeds)
+    tables/scores.csv            every seed's score (mean of the last k evaluations) and final
+                                 checkpoint score: everything the tables below are computed from
+    tables/table1.{md,tex,csv}   nominal score per task × method (mean ± std over seeds)
     tables/aggregate.{md,csv}    IQM and mean with 95% stratified-bootstrap CIs
-    tables/per_task.{md,csv}     the same per task, in raw returns
+    tables/per_task.{md,csv}     mean per task and method with its 95% t interval
+    tables/differences.{md,csv}  AdaRL − each baseline per task: Welch CI, permutation p, power
     tables/probability_of_improvement.{md,csv}
     tables/performance_profiles.csv
     tables/parseval.{md,csv}     every Parseval coefficient's cell (Table 1 keeps the best)
     tables/contrast_FIELD.{md,csv}  with --contrast FIELD: differences along one setting, CIs
-    tables/fixed_rank.{md,csv}   final return per fixed rank (bias–variance sweep)
+    tables/fixed_rank.{md,csv}   score per fixed rank (bias–variance sweep)
     tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
     tables/suites.{md,csv}       worst-case / average return over robustness suites' grids
     tables/robustness_size_<task>_<suite>.csv   return against the size of the perturbation
@@ -34,6 +37,7 @@ import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -41,7 +45,7 @@ import pandas as pd
 from adarl import __version__
 from adarl.algos import registry
 from adarl.errors import UsageError, check_choice
-from adarl.evaluation import collect, compare, figures, selection, stats, tables
+from adarl.evaluation import behaviour, collect, compare, figures, selection, stats, tables
 from adarl.evaluation.runs import (
     Run,
     config_value,
@@ -70,6 +74,10 @@ class ReportOptions:
     command: str = ""
     rnac_checkpoint: str = "final"  # final, or best (by evaluation, as RNAC's original reports)
     contrasts: tuple[str, ...] = ()  # FIELD or FIELD=REFERENCE: differences along one setting
+    last_k: int = 5  # a seed's score: the mean of its last k evaluations (eval.csv)
+    power: float = 0.8  # power of the comparisons' "detectable difference" (two-sided t-test)
+    alpha: float = 0.05  # its level
+    target_difference: float = 300.0  # the difference whose seeds per arm each comparison gives
 
 
 @dataclass
@@ -77,6 +85,33 @@ class Section:
     title: str
     text: str = ""
     files: list[Path] = field(default_factory=list)
+    empty: bool = False  # nothing to show for these runs: left out of index.md (listed once)
+
+
+@dataclass(frozen=True)
+class ScoreNote:
+    """The line under each table of scores: what the score is (`score_line`) and where the
+    final-checkpoint scores came from (`final_sources`)."""
+
+    text: str = ""
+    final_from: str = ""
+
+    def line(self, where: str) -> str:
+        """`score: …; final checkpoint (<from>) in <where>.`; empty without a score."""
+        if not self.text:
+            return ""
+        source = f" ({self.final_from})" if self.final_from else ""
+        return f"{self.text}; final checkpoint{source} in {where}."
+
+
+class Scored(NamedTuple):
+    """A run's scores: `table` (`seed, score, final, evaluations, first_step, last_step,
+    episodes`; `score` the primary score, `final` the final checkpoint's) and where each came
+    from."""
+
+    table: pd.DataFrame
+    source: str
+    final_source: str = ""
 
 
 # ----------------------------------------------------------------------------- entry point
@@ -88,7 +123,12 @@ def build_report(
     check_output(out)
     if options.bootstrap_reps < 1:
         raise UsageError(f"--bootstrap-reps must be ≥ 1, got {options.bootstrap_reps}")
+    if options.last_k < 1:
+        raise UsageError(f"--last-k must be ≥ 1, got {options.last_k}")
     check_choice("--rnac-checkpoint", options.rnac_checkpoint, selection.RNAC_CHECKPOINTS)
+    score_files = [scores_file(p) for p in paths]
+    if any(score_files):
+        return _build_from_scores(paths, score_files, out, options)
     runs, notes = usable_runs(find_runs(paths), options.skip_incomplete)
     check_rows(runs)
     for contrast in options.contrasts:
@@ -102,6 +142,81 @@ def build_report(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+def scores_file(path: str | os.PathLike) -> Path | None:
+    """The `tables/scores.csv` that `path` names (the file itself, or an earlier report folder
+    holding it); None for anything else (run folders)."""
+    path = Path(path)
+    if path.is_file() and path.name == SCORES_CSV:
+        return path
+    index, found = path / INDEX, path / "tables" / SCORES_CSV
+    if index.is_file() and found.is_file() and MARKER in index.read_text(encoding="utf-8"):
+        return found
+    return None
+
+
+def _build_from_scores(paths, score_files, out: Path, options: ReportOptions) -> Path:
+    """Table 1 and the statistics recomputed from earlier reports' `tables/scores.csv`."""
+    if not all(score_files):
+        bad = next(p for p, f in zip(paths, score_files) if f is None)
+        raise UsageError(
+            f"{bad}: give either run folders or earlier reports (their tables/{SCORES_CSV}), "
+            "not both"
+        )
+    if options.contrasts:
+        raise UsageError("--contrast needs run folders (their configs), not scores.csv")
+    scores = pd.concat([read_scores(f) for f in score_files], ignore_index=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.tmp-"))
+    try:
+        write_scores_report(scores, [str(f) for f in score_files], tmp, options)
+        _swap_into_place(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def read_scores(path: Path) -> pd.DataFrame:
+    """An earlier report's scores.csv, checked for the columns a report needs."""
+    scores = pd.read_csv(path)
+    missing = [c for c in ("task", "method", "run", "seed", "score") if c not in scores]
+    if missing:
+        raise UsageError(f"{path} lacks the column(s) {', '.join(missing)} of a report's scores")
+    return scores
+
+
+def write_scores_report(
+    scores: pd.DataFrame, sources: list[str], folder: Path, options: ReportOptions
+) -> None:
+    """The tables of scores (Table 1, aggregate, per task, differences, probability of
+    improvement, profiles) from a scores table alone: the rows with a `table1_method` under
+    that label (Parseval's selection and the fixed-rank sweep as the original report made
+    them)."""
+    (folder / "tables").mkdir(parents=True)
+    (folder / "figures").mkdir()
+    notes: list[str] = []
+    if "table1_method" in scores:
+        scores = scores[scores["table1_method"].notna()].assign(method=scores["table1_method"])
+    scores = scores.reset_index(drop=True)
+    k = int(scores["last_k"].max()) if "last_k" in scores and scores["last_k"].notna().any() else 0
+    note = ScoreNote(
+        score_line(scores, k) if k else "",
+        " or ".join(dict.fromkeys(scores.get("final_from", pd.Series(dtype=str)).dropna())),
+    )
+    sections = [
+        table1_section(scores, folder, (), note),
+        *statistics_sections(scores, folder, options, notes, note),
+    ]
+    lines = [MARKER, "# adarl report", "", f"Made by adarl {__version__} from the per-seed scores "
+             f"of {', '.join(f'`{s}`' for s in sources)} (no run folders: no curves, behaviour, "
+             "robustness or contrasts)."]  # fmt: skip
+    lines += _section_lines(folder, sections)
+    lines += ["", "## Commands", "", "```sh", options.command or "adarl report …", "```"]
+    if notes:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
+    _write(folder, INDEX, "\n".join(lines) + "\n")
 
 
 def check_output(out: Path) -> None:
@@ -175,9 +290,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     fixed = [r for r in runs if registry.role(r.algo, "rank_sweep")]
     main = [r for r in runs if not registry.role(r.algo, "rank_sweep")] or fixed
     finals = {
-        r.path: collect.best_scores(r)
-        if best_rnac and registry.keeps_best_policy(r.algo)
-        else collect.final_scores(r)
+        r.path: run_scores(r, options.last_k, best_rnac and registry.keeps_best_policy(r.algo))
         for r in runs
     }
     for r in runs:
@@ -189,14 +302,19 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     parseval = selection.select_parseval(main, _long_scores(main, finals))
     scores = parseval.scores
     notes += parseval.notes
+    notes += few_evaluations_notes(_long_scores(runs, finals), options.last_k)
     colours = figures.method_colours([r.label for r in runs] + list(parseval.labels.values()))
+    score_note = ScoreNote(score_line(scores, options.last_k), final_sources(finals.values()))
 
     sections = [runs_section(runs, finals, folder)]
-    sections.append(table1_section(scores, folder, protocol_notes(runs, parseval, options)))
+    sections.append(scores_section(_long_scores(runs, finals), scores, finals, options, folder))
+    sections.append(
+        table1_section(scores, folder, protocol_notes(runs, parseval, options), score_note)
+    )
     if not parseval.cells.empty:
         sections.append(parseval_section(parseval, folder))
     sections.append(behaviour_section(main, folder))
-    sections += statistics_sections(scores, folder, options, notes)
+    sections += statistics_sections(scores, folder, options, notes, score_note)
     sections += [contrast_section(main, finals, c, folder, options) for c in options.contrasts]
     sections.append(training_section(main, folder, colours))
     sections.append(rank_section(runs, folder))
@@ -210,6 +328,30 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     write_index(folder, runs, sections, options, notes)
 
 
+def run_scores(run: Run, k: int, best: bool = False) -> Scored:
+    """Each seed's primary score and final-checkpoint score.
+
+    Primary: the mean of the last `k` evaluations logged during training
+    (`collect.last_k_scores`); `best` (RNAC's best checkpoint): that checkpoint's evaluation
+    return (`collect.best_scores`); a run that logged no evaluation: its final checkpoint.
+    Final checkpoint: `collect.final_scores` (`adarl evaluate` of it, else the last eval.csv
+    evaluation)."""
+    final, final_source = collect.final_scores(run)
+    if best:
+        primary, source = collect.best_scores(run)
+    else:
+        primary, source = collect.last_k_scores(run, k)
+        if primary.empty and not final.empty:
+            primary, source = final, f"final checkpoint ({final_source}; no evaluation logged)"
+    if primary.empty:
+        return Scored(pd.DataFrame(columns=SCORE_COLUMNS), source, final_source)
+    table = primary.merge(final.rename(columns={"score": "final"}), on="seed", how="left")
+    return Scored(table.reindex(columns=SCORE_COLUMNS), source, final_source)
+
+
+SCORE_COLUMNS = ["seed", "score", "final", "evaluations", "first_step", "last_step", "episodes"]
+
+
 def _long_scores(runs: Sequence[Run], finals: dict) -> pd.DataFrame:
     frames = [
         finals[r.path][0].assign(task=r.task, method=r.label, run=str(r.path))
@@ -219,6 +361,113 @@ def _long_scores(runs: Sequence[Run], finals: dict) -> pd.DataFrame:
     if not frames:
         return pd.DataFrame(columns=["seed", "score", "task", "method", "run"])
     return pd.concat(frames, ignore_index=True)
+
+
+def _steps(first: float, last: float) -> str:
+    return f"{first:,.0f}" if first == last else f"{first:,.0f}–{last:,.0f}"
+
+
+def final_sources(scored) -> str:
+    """Where the final-checkpoint scores came from, in a few words: `adarl evaluate` (with its
+    episodes) and/or the last evaluation in eval.csv."""
+    kinds = []
+    for item in scored:
+        source = item[2] if len(item) > 2 else ""
+        if source.startswith("`adarl evaluate`"):
+            kinds.append(source.split(",")[0].replace(" (", ", "))
+        elif source.startswith("eval.csv"):
+            kinds.append("the last evaluation in eval.csv")
+    return " or ".join(dict.fromkeys(kinds))
+
+
+def score_line(scores: pd.DataFrame, k: int) -> str:
+    """What the tables' score is, for the line under each table: "score: mean of the last 5
+    evaluations (steps 60,000–100,000), 5 episodes each", with the runs that had fewer
+    evaluations and those scored otherwise (RNAC's best checkpoint, no evaluation logged)."""
+    if scores.empty:
+        return ""
+    logged = scores.dropna(subset=["evaluations"]) if "evaluations" in scores else scores.iloc[0:0]
+    parts = []
+    if not logged.empty:
+        spans = logged.groupby(["first_step", "last_step"], sort=True)
+        if spans.ngroups == 1:
+            (first, last), _ = next(iter(spans))
+            where = f"steps {_steps(first, last)}"
+        elif spans.ngroups <= 3:
+            where = "steps " + "; ".join(
+                f"{_steps(first, last)} for {', '.join(sorted(set(g['task'] + ' ' + g['method'])))}"
+                for (first, last), g in spans
+            )
+        else:
+            where = "steps per seed in tables/scores.csv"
+        low, high = int(logged["episodes"].min()), int(logged["episodes"].max())
+        episodes = (
+            f"{low} episode{'s' if high > 1 else ''}" if low == high else f"{low}–{high} episodes"
+        )
+        parts.append(f"mean of the last {k} evaluations ({where}), {episodes} each")
+        short = logged[logged["evaluations"] < k]
+        if not short.empty:
+            few = short.groupby(["task", "method"])["evaluations"].min()
+            parts.append(
+                "fewer evaluations than that, all of them used: "
+                + ", ".join(f"{t} {m} ({n})" for (t, m), n in few.items())
+            )
+    others = scores[~scores.index.isin(logged.index)]
+    if not others.empty:
+        labels = sorted(set(others["task"] + " " + others["method"]))
+        best = [lab for lab in labels if selection.RNAC_BEST_LABEL in lab]
+        rest = [lab for lab in labels if lab not in best]
+        if best:
+            parts.append(f"{', '.join(best)}: the best checkpoint's evaluation return")
+        if rest:
+            parts.append(f"{', '.join(rest)}: the final checkpoint (no evaluation logged)")
+    return "score: " + "; ".join(parts)
+
+
+def few_evaluations_notes(scores: pd.DataFrame, k: int) -> list[str]:
+    """One note per run whose seeds logged fewer than `k` evaluations."""
+    if scores.empty or "evaluations" not in scores:
+        return []
+    short = scores[scores["evaluations"] < k]
+    return [
+        f"{run}: {int(g['evaluations'].min())} evaluation(s) logged, fewer than --last-k {k}; "
+        "its score is the mean of those it has."
+        for run, g in short.groupby("run", sort=False)
+    ]
+
+
+SCORES_CSV = "scores.csv"
+
+
+def scores_section(
+    scores: pd.DataFrame, table1: pd.DataFrame, finals: dict, options: ReportOptions, folder: Path
+) -> Section:
+    """`tables/scores.csv`: every seed's scores, the input of Table 1 and the statistics, with
+    `table1_method` (its label in Table 1 and the statistics, empty for runs they leave out),
+    `last_k` and where the scores came from: `adarl report tables/scores.csv` recomputes the
+    tables from it alone."""
+    if not scores.empty:
+        by_run = {str(path): scored for path, scored in finals.items()}
+        labels = table1[["run", "seed", "method"]].rename(columns={"method": "table1_method"})
+        scores = scores.merge(labels, on=["run", "seed"], how="left").assign(
+            last_k=options.last_k,
+            score_from=lambda df: df["run"].map(lambda r: by_run[r][1]),
+            final_from=lambda df: df["run"].map(lambda r: final_sources([by_run[r]])),
+        )
+    columns = ["task", "method", "run", *SCORE_COLUMNS, "table1_method", "last_k", "score_from",
+               "final_from"]  # fmt: skip
+    # full precision: a report recomputed from this file gives the same tables
+    path = _write(
+        folder, f"tables/{SCORES_CSV}", scores.reindex(columns=columns).to_csv(index=False)
+    )
+    text = (
+        "Every seed's score (the tables' primary score, `score`) and final-checkpoint score "
+        "(`final`), with the evaluations averaged: the input of Table 1, the statistics and the "
+        "comparisons below (column `table1_method`: Parseval's selected coefficient, not the "
+        "fixed-rank sweep). `adarl report <this report> --out DIR` recomputes those tables "
+        "from this file alone.\n"
+    )
+    return Section("Scores per seed", text, [path], empty=scores.empty)
 
 
 def _write(folder: Path, name: str, text: str) -> Path:
@@ -261,7 +510,8 @@ def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
                 "budget (steps per seed)": r.total_steps,
                 "final checkpoint": last,
                 "finished": "yes" if r.done_step is not None else "no",
-                "final return from": finals[r.path][1],
+                "score from": finals[r.path][1],
+                "final checkpoint from": finals[r.path][2] if len(finals[r.path]) > 2 else "",
             }
         )
     df = pd.DataFrame(rows)
@@ -272,37 +522,63 @@ def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
     return Section("Runs", text, [path])
 
 
-def table1_section(scores: pd.DataFrame, folder: Path, labels: Sequence[str] = ()) -> Section:
-    """Table 1; `labels` explain method labels (Parseval's selection, RNAC's checkpoint) below
-    the table, in the LaTeX caption and in the report text."""
+TABLE1 = "Table 1: return under nominal dynamics"
+
+
+def _final_table(scores: pd.DataFrame) -> tables.ScoreTable | None:
+    """The final-checkpoint scores (`final` column) as a `ScoreTable`; None without them."""
+    if "final" not in scores or scores["final"].isna().all():
+        return None
+    return tables.score_table(scores.assign(score=scores["final"]).dropna(subset=["score"]))
+
+
+def table1_section(
+    scores: pd.DataFrame,
+    folder: Path,
+    labels: Sequence[str] = (),
+    score_note: ScoreNote = ScoreNote(),
+) -> Section:
+    """Table 1 on the primary score, each task followed by a row of the final checkpoint's;
+    `labels` explain method labels (Parseval's selection, RNAC's checkpoint) below the table, in
+    the LaTeX caption and in the report text; `score_note` says what the score is."""
     if scores.empty:
-        return Section(
-            "Table 1: final return under nominal dynamics", "No nominal evaluations found.\n"
-        )
-    table = tables.score_table(scores)
-    caption = "Final return under nominal dynamics, mean ± standard deviation over seeds."
-    legend = "".join(f"\n{line}\n" for line in labels)
-    full_caption = " ".join([caption, *labels]).replace("`", "")
+        return Section(TABLE1, "No nominal evaluations found.\n")
+    table, final = tables.score_table(scores), _final_table(scores)
+    caption = "Return under nominal dynamics, mean ± standard deviation over seeds."
+    score = score_note.line(f"the rows “<task>, {tables.FINAL_ROW}”")
+    legend = "".join(f"\n{line}\n" for line in [score, *labels] if line)
+    full_caption = " ".join(line for line in [caption, score, *labels] if line)
+    full_caption = full_caption.replace("`", "")
+    md = tables.table_markdown(table, second=final)
     files = [
-        _write(folder, "tables/table1.md", tables.table_markdown(table) + legend),
-        _write(folder, "tables/table1.tex", tables.table_latex(table, caption=full_caption)),
-        _write(folder, "tables/table1.csv", tables.table_csv(table)),
+        _write(folder, "tables/table1.md", md + legend),
+        _write(
+            folder,
+            "tables/table1.tex",
+            tables.table_latex(table, caption=full_caption, second=final),
+        ),
+        _write(folder, "tables/table1.csv", tables.table_csv(table, second=final)),
     ]
     text = (
         f"{caption} The best mean per task is in bold. Seeds per cell: "
-        f"{_seed_counts(table)}.\n\n{tables.table_markdown(table)}{legend}"
+        f"{_seed_counts(table)}.\n\n{md}{legend}"
     )
-    return Section("Table 1: final return under nominal dynamics", text, files)
+    return Section(TABLE1, text, files)
 
 
 def behaviour_section(runs: list[Run], folder: Path) -> Section:
-    """Episode length and forward distance of the final policies on nominal dynamics: a return
-    of ~1,000 on Hopper can be a policy that stands still for 1,000 steps."""
+    """Episode length and forward distance of the final policies on nominal dynamics, and what
+    each seed does in one word (`behaviour.describe`): a return of ~1,000 on Hopper can be a
+    policy that stands still for 1,000 steps."""
     frames = [collect.final_behaviour(r).assign(task=r.task, method=r.label) for r in runs]
     df = pd.concat([f for f in frames if not f.empty] or [pd.DataFrame()], ignore_index=True)
     title = "What the final policies do"
     if df.empty:
         return Section(title, "No nominal evaluations found.\n")
+    df["does"] = [
+        behaviour.describe(length, limit, distance)
+        for length, limit, distance in zip(df["length"], df["max_length"], df["distance"])
+    ]
     rows = []
     for (task, method), group in df.groupby(["task", "method"], sort=False):
         cells = [task, method]
@@ -310,17 +586,22 @@ def behaviour_section(runs: list[Run], folder: Path) -> Section:
             values = group[column].dropna().to_numpy(float)
             mean, std = stats.mean_std(values) if len(values) else (np.nan, np.nan)
             cells.append(tables.format_mean_std(mean, std, len(values), digits))
+        counts = group["does"].value_counts()
+        cells.append(", ".join(f"{w} {counts[w]}" for w in behaviour.WORDS if w in counts))
         rows.append(cells)
-    md = tables.markdown_table(["task", "method", "episode length", "forward distance (m)"], rows)
-    path = _write(
-        folder, "tables/behaviour.csv", _csv(df[["task", "method", "seed", "length", "distance"]])
+    md = tables.markdown_table(
+        ["task", "method", "episode length", "forward distance (m)", "seeds that …"], rows
     )
+    columns = ["task", "method", "seed", "length", "max_length", "distance", "does"]
+    path = _write(folder, "tables/behaviour.csv", _csv(df[columns]))
+    limits = sorted({int(v) for v in df["max_length"]})
     text = (
-        "Mean episode length (steps, of at most 1,000) and forward distance of the root body "
-        "(metres) of each seed's final policy on nominal dynamics, mean ± std over seeds. A "
-        "Hopper policy that only balances earns about 1,000 in 1,000 steps while moving ~0 m; "
-        "rank methods by return only together with this table. Distance is recorded by "
-        "`adarl evaluate` (— where only the training log exists).\n\n" + md
+        f"Mean episode length (steps, of at most {'/'.join(f'{v:,}' for v in limits)}) and "
+        "forward distance of the root body (metres) of each seed's final policy on nominal "
+        "dynamics, mean ± std over seeds, and how many seeds fall, stand or move "
+        f"({behaviour.rule_text()}). A Hopper policy that only balances earns about 1,000 in "
+        "1,000 steps while moving ~0 m; rank methods by return only together with this table. "
+        "Distance is recorded by `adarl evaluate` (— where only the training log exists).\n\n" + md
     )
     return Section(title, text, [path])
 
@@ -360,7 +641,7 @@ def parseval_section(parseval: selection.ParsevalSelection, folder: Path) -> Sec
         _write(folder, "tables/parseval.csv", _csv(parseval.cells)),
     ]
     text = (
-        "Final return under nominal dynamics of `sac-parseval` at each coefficient, mean ± "
+        "Score under nominal dynamics (Table 1's) of `sac-parseval` at each coefficient, mean ± "
         "standard deviation over seeds. As in the paper, Table 1 and the statistics report, per "
         "task, the coefficient with the highest mean (in bold; ties: the larger coefficient), "
         "chosen on the same metric it reports, so that cell is optimistic.\n\n" + md
@@ -407,15 +688,15 @@ def contrast_groups(runs: Sequence[Run], contrast: str) -> tuple[str, str, dict]
 
 
 def _seed_scores(finals: dict, runs: list[Run]) -> np.ndarray:
-    """The final scores of every seed of `runs`, pooled."""
+    """The scores of every seed of `runs`, pooled."""
     return np.concatenate([finals[r.path][0]["score"].to_numpy(float) for r in runs])
 
 
 def contrast_section(
     runs: list[Run], finals: dict, contrast: str, folder: Path, options: ReportOptions
 ) -> Section:
-    """Final nominal return of each value of one setting minus the reference value's, among runs
-    that agree on everything else, with a bootstrap CI over seeds (`stats.difference_ci`)."""
+    """Score of each value of one setting minus the reference value's, among runs that agree on
+    everything else: Welch interval, exact permutation p and power (`stats.compare_groups`)."""
     field, reference, groups = contrast_groups(runs, contrast)
     rows = []
     for (task, method, others), by_value in groups.items():
@@ -426,9 +707,10 @@ def contrast_section(
             other = _seed_scores(finals, by_value[value])
             if not len(base) or not len(other):
                 continue
-            ci = stats.difference_ci(
-                other, base, options.bootstrap_reps, options.confidence, options.seed
-            )
+            comparison = stats.compare_groups(
+                other, base, options.target_difference, options.confidence, options.power,
+                options.alpha,
+            )  # fmt: skip
             rows.append(
                 {
                     "task": task,
@@ -437,34 +719,35 @@ def contrast_section(
                     "contrast": f"{field}: {value} − {reference}",
                     f"mean ({reference})": base.mean(),
                     "mean (other)": other.mean(),
-                    "difference": ci.point,
-                    "ci low": ci.low,
-                    "ci high": ci.high,
-                    "seeds": f"{len(other)} vs {len(base)}",
+                    **compare.comparison_row(comparison),
                 }
             )
     df = pd.DataFrame(rows)
+    if not df.empty:
+        df = df.rename(columns={"low": "ci low", "high": "ci high", "p_value": "p"})
     stem = f"tables/contrast_{_slug(field)}"
     files = [_write(folder, f"{stem}.csv", _csv(df))]
     if df.empty:
         return Section(f"Contrast: {field}", f"No pair of runs differs only in `{field}`.", files)
-    pct = int(round(100 * options.confidence))
+    pct, level = int(round(100 * options.confidence)), f"{options.power:.0%}"
     md = tables.markdown_table(
         ["task", "method", "held fixed", "contrast", f"mean ({reference})", "mean (other)",
-         f"difference [{pct}% CI]", "seeds"],
+         f"difference [{pct}% CI, Welch]", "p", "seeds", f"detectable at {level}",
+         f"seeds for {options.target_difference:g}"],
         [
-            [r["task"], r["method"], r["held fixed"], r["contrast"], f"{r[f'mean ({reference})']:.1f}",
-             f"{r['mean (other)']:.1f}", f"{r['difference']:.1f} [{r['ci low']:.1f}, {r['ci high']:.1f}]",
-             r["seeds"]]
-            for r in rows
+            [r["task"], r["method"], r["held fixed"], r["contrast"],
+             f"{r[f'mean ({reference})']:.1f}", f"{r['mean (other)']:.1f}",
+             f"{r['difference']:.1f} {_ci(r['ci low'], r['ci high'], 1)}".replace(f" {tables.DASH}", ""),
+             _p(r["p"]), r["seeds"], _detectable(r["detectable"]), _seeds_for(r["seeds_for_target"])]
+            for r in df.to_dict("records")
         ],
     )  # fmt: skip
     files.append(_write(folder, f"{stem}.md", md))
     text = (
-        f"Final nominal return with `{field}` set to each value minus the same runs' setting at "
-        f"`{reference}`, everything else equal; {pct}% percentile-bootstrap interval over seeds "
-        "(each side resampled independently). An interval that contains 0 shows no difference "
-        "at this number of seeds.\n\n" + md
+        f"Score with `{field}` set to each value minus the same runs' setting at `{reference}`, "
+        f"everything else equal; {pct}% Welch t interval over seeds (each side's seeds "
+        "independent). An interval that contains 0 shows no difference at this number of "
+        "seeds.\n\n" + md + "\n" + _power_text(options) + "\n"
     )
     return Section(f"Contrast: {field}", text, files)
 
@@ -475,15 +758,36 @@ def _seed_counts(table: tables.ScoreTable) -> str:
 
 
 def _interval(point: float, low: float, high: float, digits: int) -> tuple[str, str]:
-    return f"{point:.{digits}f}", f"[{low:.{digits}f}, {high:.{digits}f}]"
+    return f"{point:.{digits}f}", _ci(low, high, digits)
 
 
 def statistics_sections(
-    scores: pd.DataFrame, folder: Path, options: ReportOptions, notes: list[str]
+    scores: pd.DataFrame,
+    folder: Path,
+    options: ReportOptions,
+    notes: list[str],
+    score_note: ScoreNote = ScoreNote(),
 ) -> list[Section]:
-    """Aggregate IQM/mean, per-task IQM/mean, probability of improvement, performance profiles."""
+    """Aggregate IQM/mean, per-task means, per-task differences from the reference,
+    probability of improvement, performance profiles: each only where it carries information
+    (intervals need two seeds; aggregates, profiles and comparisons need two methods)."""
     if scores.empty:
         return []
+    methods = sort_methods(scores["method"])
+    several_seeds = bool(scores.groupby(["task", "method"]).size().max() >= 2)
+    if not several_seeds:
+        notes.append(
+            "One seed per task and method: no intervals, no per-task statistics, aggregates, "
+            "profiles or comparisons (they need at least two seeds)."
+        )
+        return []
+    sections = []
+    if len(methods) < 2:
+        notes.append(
+            "One method: no aggregate statistics, performance profiles, differences or "
+            "probability of improvement (they compare methods)."
+        )
+        return [per_task_section(scores, folder, options, score_note)]
     normalised = compare.normalise(scores)
     if normalised.left_out:
         notes.append(
@@ -495,84 +799,212 @@ def statistics_sections(
             f"{m}: tasks have different seed counts; aggregates use as many seeds per task as "
             "the task with the fewest."
         )
-    sections = [
-        aggregate_section(normalised, folder, options),
-        per_task_section(scores, folder, options),
-    ]
-    if REFERENCE in set(scores["method"]):
-        sections.append(improvement_section(scores, folder, options))
+    if len(normalised.matrices) >= 2:
+        sections.append(aggregate_section(scores, normalised, folder, options, score_note))
+    sections.append(per_task_section(scores, folder, options, score_note))
+    if REFERENCE in methods:
+        differences = compare.difference_estimates(
+            scores, REFERENCE, options.confidence, options.target_difference, options.power,
+            options.alpha,
+        )  # fmt: skip
+        if not differences.empty:
+            sections.append(differences_section(differences, folder, options))
+        sections.append(improvement_section(scores, differences, folder, options))
     else:
-        notes.append(f"No {REFERENCE!r} runs: probability of improvement is not computed.")
-    if normalised.matrices:
+        notes.append(
+            f"No {REFERENCE!r} runs: differences and probability of improvement are not computed."
+        )
+    if len(normalised.matrices) >= 2:
         sections.append(profile_section(normalised, folder, options))
     return sections
 
 
+def _final_scores(scores: pd.DataFrame) -> pd.DataFrame:
+    """`scores` with the final checkpoint's score as `score` (seeds without one dropped)."""
+    if "final" not in scores:
+        return scores.iloc[0:0]
+    return scores.assign(score=scores["final"]).dropna(subset=["score"])
+
+
+def _ci(low: float, high: float, digits: int) -> str:
+    """`[low, high]`, or a dash where there is no interval (one seed)."""
+    if not (np.isfinite(low) and np.isfinite(high)):
+        return tables.DASH
+    return f"[{low:.{digits}f}, {high:.{digits}f}]"
+
+
+def _power_text(options: ReportOptions) -> str:
+    level = f"{options.power:.0%}"
+    return (
+        f"**Power.** “detectable at {level}”: the smallest true difference of mean return that "
+        f"a two-sided two-sample t-test at α = {options.alpha:g} detects with probability "
+        f"{level} with the seeds at hand, given the pooled SD of the two arms (noncentral t; "
+        "`stats.minimum_detectable_difference`); a real difference smaller than that is likely "
+        f"to go unseen. “seeds for {options.target_difference:g}”: the seeds per arm a "
+        f"difference of {options.target_difference:g} would need at that power and SD "
+        "(`stats.seeds_per_arm`). p: exact two-sided permutation test of the difference of "
+        "means (every split of the pooled seeds; with 3 seeds a side no p is below 0.1)."
+    )
+
+
+def _seeds_for(value: float) -> str:
+    return f"{value:,.0f}" if np.isfinite(value) else tables.DASH
+
+
+def _detectable(value: float) -> str:
+    return f"{value:,.0f}" if np.isfinite(value) else tables.DASH
+
+
+def _p(value: float) -> str:
+    return f"{value:.3f}" if np.isfinite(value) else tables.DASH
+
+
 def aggregate_section(
-    normalised: compare.Normalised, folder: Path, options: ReportOptions
+    scores: pd.DataFrame,
+    normalised: compare.Normalised,
+    folder: Path,
+    options: ReportOptions,
+    score_note: ScoreNote = ScoreNote(),
 ) -> Section:
     reps, conf = options.bootstrap_reps, options.confidence
     estimates = compare.aggregate_estimates(normalised, reps, conf, options.seed)
+    final_scores = _final_scores(scores)
+    if not final_scores.empty:
+        final = compare.aggregate_estimates(
+            compare.normalise(final_scores), reps, conf, options.seed
+        )
+        final = final.rename(
+            columns={"point": "final_point", "low": "final_low", "high": "final_high"}
+        )
+        estimates = estimates.merge(
+            final[["method", "metric", "final_point", "final_low", "final_high"]],
+            on=["method", "metric"], how="left",
+        )  # fmt: skip
     title = "Aggregate statistics (rliable)"
     text = (
-        "Final returns min–max normalised per task over all methods and seeds (0 = the lowest, "
-        f"1 = the highest seed's return on that task), then aggregated over "
+        "Scores min–max normalised per task over all methods and seeds (0 = the lowest, "
+        f"1 = the highest seed's score on that task), then aggregated over "
         f"{len(normalised.tasks)} task(s) and their seeds. Intervals: {conf:.0%} stratified "
         f"bootstrap ({reps} resamples, seed {options.seed}).\n\n"
     )
     files = [_write(folder, "tables/aggregate.csv", _csv(estimates))]
-    if estimates.empty:
-        return Section(title, text + "No method ran on every task.\n", files)
     rows = []
     for method, matrix in normalised.matrices.items():
         by_metric = estimates[estimates["method"] == method].set_index("metric")
-        iqm = _interval(*by_metric.loc["IQM", ["point", "low", "high"]], 3)
-        mean = _interval(*by_metric.loc["Mean", ["point", "low", "high"]], 3)
-        rows.append([method, *iqm, *mean, f"{matrix.shape[0]} × {matrix.shape[1]}"])
-    header = ["method", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI"]
-    md = tables.markdown_table([*header, "seeds × tasks"], rows)
-    files.append(_write(folder, "tables/aggregate.md", md))
-    files += _figure(folder, figures.aggregate_intervals(estimates), "aggregate_iqm_mean")
-    return Section(title, text + md, files)
-
-
-def per_task_section(scores: pd.DataFrame, folder: Path, options: ReportOptions) -> Section:
-    conf = options.confidence
-    estimates = compare.per_task_estimates(
-        scores, options.bootstrap_reps, conf, options.seed + 1000
-    )
-    rows = [
-        [r.task, r.method, r.seeds, *_interval(r.iqm, r.iqm_low, r.iqm_high, 1),
-         *_interval(r.mean, r.mean_low, r.mean_high, 1)]
-        for r in estimates.itertuples()
-    ]  # fmt: skip
-    header = ["task", "method", "seeds", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI"]
+        cells = [method]
+        for metric in ("IQM", "Mean"):
+            point, low, high = by_metric.loc[metric, ["point", "low", "high"]]
+            cells += [f"{point:.3f}", _ci(low, high, 3) if matrix.shape[0] > 1 else tables.DASH]
+        for metric in ("IQM", "Mean"):
+            value = by_metric.loc[metric].get("final_point", np.nan)
+            cells.append(f"{value:.3f}" if np.isfinite(value) else tables.DASH)
+        rows.append([*cells, f"{matrix.shape[0]} × {matrix.shape[1]}"])
+    header = ["method", "IQM", f"IQM {conf:.0%} CI", "mean", f"mean {conf:.0%} CI",
+              "IQM, final checkpoint", "mean, final checkpoint", "seeds × tasks"]  # fmt: skip
     md = tables.markdown_table(header, rows)
+    line = score_note.line("the columns “…, final checkpoint” (intervals in aggregate.csv)")
+    line = f"\n{line}\n" if line else ""
+    files.append(_write(folder, "tables/aggregate.md", md + line))
+    files += _figure(folder, figures.aggregate_intervals(estimates), "aggregate_iqm_mean")
+    return Section(title, text + md + line, files)
+
+
+def per_task_section(
+    scores: pd.DataFrame, folder: Path, options: ReportOptions, score_note: ScoreNote = ScoreNote()
+) -> Section:
+    conf = options.confidence
+    estimates = compare.per_task_estimates(scores, conf)
+    has_final = "final_mean" in estimates
+    rows = []
+    for r in estimates.itertuples():
+        final = (
+            f"{r.final_mean:.1f} {_ci(r.final_low, r.final_high, 1)}".replace(f" {tables.DASH}", "")
+            if has_final and np.isfinite(r.final_mean)
+            else tables.DASH
+        )
+        rows.append(
+            [r.task, r.method, r.seeds, f"{r.mean:.1f}", _ci(r.mean_low, r.mean_high, 1),
+             _number(r.sd), f"{r.iqm:.1f}", final]
+        )  # fmt: skip
+    header = ["task", "method", "seeds", "mean", f"{conf:.0%} CI (t)", "sd", "IQM",
+              f"final checkpoint [{conf:.0%} CI]"]  # fmt: skip
+    md = tables.markdown_table(header, rows)
+    line = score_note.line("the column “final checkpoint”")
+    line = f"\n{line}\n" if line else ""
     files = [
         _write(folder, "tables/per_task.csv", _csv(estimates)),
-        _write(folder, "tables/per_task.md", md),
+        _write(folder, "tables/per_task.md", md + line),
     ]
-    return Section("Per-task IQM and mean (raw returns)", md, files)
+    text = (
+        "Mean score over seeds per task and method with its Student-t interval "
+        f"x̄ ± t · s/√n ({conf:.0%}; at 3–10 seeds a percentile bootstrap under-covers, "
+        "docs/evaluation.md), the standard deviation and the interquartile mean (no interval: "
+        "over a few seeds it has none worth giving).\n\n"
+    )
+    return Section("Per-task means (raw returns)", text + md + line, files)
 
 
-def improvement_section(scores: pd.DataFrame, folder: Path, options: ReportOptions) -> Section:
+def differences_section(differences: pd.DataFrame, folder: Path, options: ReportOptions) -> Section:
+    """`REFERENCE` − each baseline per task, with Welch intervals, permutation p and power."""
+    conf, level, target = options.confidence, f"{options.power:.0%}", options.target_difference
+    rows = [
+        [r.task, f"{REFERENCE} − {r.baseline}", r.seeds,
+         f"{r.difference:.1f} {_ci(r.low, r.high, 1)}".replace(f" {tables.DASH}", ""),
+         _p(r.p_value), _detectable(r.detectable), _seeds_for(r.seeds_for_target)]
+        for r in differences.itertuples()
+    ]  # fmt: skip
+    header = ["task", "comparison", "seeds", f"difference [{conf:.0%} CI, Welch]", "p",
+              f"detectable at {level}", f"seeds for {target:g}"]  # fmt: skip
+    md = tables.markdown_table(header, rows)
+    files = [
+        _write(folder, "tables/differences.csv", _csv(differences)),
+        _write(folder, "tables/differences.md", md),
+    ]
+    text = (
+        f"Mean score of {REFERENCE} minus each baseline's on the same task, with Welch's t "
+        "interval (each method's seeds independent; `stats.welch_difference_ci`). An interval "
+        "that contains 0 shows no difference at these seeds.\n\n"
+        + md + "\n" + _power_text(options) + "\n"
+    )  # fmt: skip
+    return Section(f"Differences from {REFERENCE} per task", text, files)
+
+
+def improvement_section(
+    scores: pd.DataFrame, differences: pd.DataFrame, folder: Path, options: ReportOptions
+) -> Section:
     conf = options.confidence
     estimates = compare.improvement_estimates(
         scores, REFERENCE, options.bootstrap_reps, conf, options.seed + 2000
     )
     title = "Probability of improvement"
     if estimates.empty:
-        return Section(title, f"No baseline ran on a task {REFERENCE} ran.\n")
+        return Section(title, f"No baseline ran on a task {REFERENCE} ran.\n", empty=True)
+    level, target = f"{options.power:.0%}", options.target_difference
+
+    def per_task(baseline: str, column: str, fmt) -> str:
+        rows = differences[differences["baseline"] == baseline]
+        if len(rows) == 1:
+            return fmt(rows[column].iloc[0])
+        return ", ".join(f"{t} {fmt(v)}" for t, v in zip(rows["task"], rows[column]))
+
     rows = [
-        [f"{REFERENCE} > {r.baseline}", r.tasks, *_interval(r.point, r.low, r.high, 3)]
+        [f"{REFERENCE} > {r.baseline}", r.tasks, r.seeds, f"{r.point:.3f}",
+         _ci(r.low, r.high, 3) if r.min_seeds > 1 else tables.DASH,
+         per_task(r.baseline, "detectable", _detectable),
+         per_task(r.baseline, "seeds_for_target", _seeds_for)]
         for r in estimates.itertuples()
-    ]
-    md = tables.markdown_table(["comparison", "tasks", "P(X > Y)", f"{conf:.0%} CI"], rows)
+    ]  # fmt: skip
+    md = tables.markdown_table(
+        ["comparison", "tasks", "seeds", "P(X > Y)", f"{conf:.0%} CI",
+         f"detectable at {level} (per task)", f"seeds for {target:g} (per task)"],
+        rows,
+    )  # fmt: skip
     text = (
-        f"Probability that a random seed of {REFERENCE} ends with a higher return than a random "
+        f"Probability that a random seed of {REFERENCE} ends with a higher score than a random "
         "seed of the baseline on the same task (ties count ½), averaged over the tasks both ran; "
         "0.5 means no difference. Intervals: stratified bootstrap, each method resampled "
-        f"independently.\n\n{md}"
+        "independently (none from one seed). Power per task: as in the differences above.\n\n"
+        f"{md}"
     )
     files = [
         _write(folder, "tables/probability_of_improvement.csv", _csv(estimates)),
@@ -596,7 +1028,7 @@ def profile_section(
     files = [_write(folder, "tables/performance_profiles.csv", _csv(frame))]
     files += _figure(folder, figures.performance_profiles(taus, profiles), "performance_profiles")
     text = (
-        "Fraction of runs (seeds × tasks) whose normalised final return exceeds τ, with "
+        "Fraction of runs (seeds × tasks) whose normalised score exceeds τ, with "
         f"{conf:.0%} stratified-bootstrap bands.\n"
     )
     return Section("Performance profiles", text, files)
@@ -618,7 +1050,7 @@ def training_section(runs: list[Run], folder: Path, colours) -> Section:
         curves.setdefault(r.task, {}).setdefault(r.label, []).append(curve)
         truncations.setdefault(r.task, set()).update(collect.truncation_steps(r))
     if not curves:
-        return Section("Training curves", "No evaluation or episode logs found.\n")
+        return Section("Training curves", "No evaluation or episode logs found.\n", empty=True)
     tasks = sort_tasks(curves)
     merged = {t: {m: pd.concat(frames) for m, frames in curves[t].items()} for t in tasks}
     fig = figures.training_curves(
@@ -648,7 +1080,7 @@ def rank_section(runs: list[Run], folder: Path) -> Section:
             + f"; intrinsic rank 2·d_a+1 = {intrinsic_rank(r)}"
         )
     if not files:
-        return Section("Rank over training", "No rank-adaptive runs.\n")
+        return Section("Rank over training", "No rank-adaptive runs.\n", empty=True)
     table, md = settling_table(runs)
     files.append(_write(folder, "tables/rank_settling.md", md))
     files.append(_write(folder, "tables/rank_settling.csv", _csv(table)))
@@ -793,14 +1225,14 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
             title,
             "No suite evaluations found; run `adarl evaluate RUN --suite NAME` to add them.\n",
         )
-    reps, conf = options.bootstrap_reps, options.confidence
+    conf = options.confidence
     order = sort_tasks(k[0] for k in found)
     methods = sort_methods(k[2] for k in found)
     keys = sorted(found, key=lambda k: (order.index(k[0]), k[1], methods.index(k[2])))
     rows, files = [], []
     for task, name, method in keys:
         summary = pd.concat([s for s, _ in found[(task, name, method)]], ignore_index=True)
-        estimate = suites.aggregate(summary, reps, conf, options.seed)
+        estimate = suites.aggregate(summary, conf)
         rows.append(
             {
                 "task": task,
@@ -839,7 +1271,7 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
         "Per seed, the worst-case return is the lowest and the average return the mean, over "
         "the suite's grid points, of the mean return over each point's episodes (as M2TD3 and "
         "RRLS report them; suites and sources: docs/evaluation.md). Shown: the mean over seeds "
-        f"with a {conf:.0%} percentile bootstrap interval over seeds ({reps} resamples). "
+        f"with a {conf:.0%} Student-t interval over seeds (none from one seed). "
         "Heatmaps: two-parameter suites, mean over seeds, the worst point circled.\n\n"
     )
     return Section(title, text + md + size_text, files)
@@ -915,7 +1347,7 @@ def _swept_values(table: pd.DataFrame, param: str) -> np.ndarray:
 
 def bias_variance_section(fixed: list[Run], runs: list[Run], finals: dict, folder: Path) -> Section:
     if not fixed:
-        return Section("Bias–variance", "No `sac-fixed-rank` runs.\n")
+        return Section("Bias–variance", "No `sac-fixed-rank` runs.\n", empty=True)
     files, texts = [], []
     for task in sort_tasks(r.task for r in fixed):
         frames = []
@@ -943,7 +1375,7 @@ def bias_variance_section(fixed: list[Run], runs: list[Run], finals: dict, folde
             data.assign(task=task, method=data["rank"].map(lambda k: f"r={k}"))
         )
         rows = [[f"r={k}", table.cell(task, f"r={k}")] for k in sorted(data["rank"].unique())]
-        md = tables.markdown_table(["rank", f"{task}: final return"], rows)
+        md = tables.markdown_table(["rank", f"{task}: score"], rows)
         texts.append(md)
         files.append(_write(folder, f"tables/fixed_rank_{_slug(task)}.md", md))
         files.append(
@@ -958,7 +1390,7 @@ def bias_variance_section(fixed: list[Run], runs: list[Run], finals: dict, folde
                 f"AdaRL's converged actor rank on {task}: {', '.join(f'{v:g}' for v in ranks)} (per seed).\n"
             )
     text = (
-        "Final nominal return of SAC with a fixed-rank bottleneck, against the rank (mean and 95% t "
+        "Nominal score (Table 1's) of SAC with a fixed-rank bottleneck, against the rank (mean and 95% t "
         "interval over seeds); AdaRL's converged rank is marked.\n\n" + "\n".join(texts)
     )
     return Section("Bias–variance", text, files)
@@ -989,7 +1421,9 @@ def ablation_section(runs: list[Run], folder: Path) -> Section:
             lines.append(f"- {task}, {rule}: final rank (mean over seeds): {ranks}")
     if not files:
         return Section(
-            "Rank-rule ablation", "Needs `adarl` runs with both rank rules on one task.\n"
+            "Rank-rule ablation",
+            "Needs `adarl` runs with both rank rules on one task.\n",
+            empty=True,
         )
     return Section(
         "Rank-rule ablation",
@@ -1012,7 +1446,7 @@ def spectra_section(runs: list[Run], folder: Path) -> Section:
         if files
         else "No spectra recorded.\n"
     )
-    return Section("Singular-value spectra", text, files)
+    return Section("Singular-value spectra", text, files, empty=not files)
 
 
 def policy_size_section(runs: list[Run], folder: Path) -> Section:
@@ -1021,7 +1455,7 @@ def policy_size_section(runs: list[Run], folder: Path) -> Section:
     ]
     data = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     if data.empty:
-        return Section("Policy size", "No policy files found.\n")
+        return Section("Policy size", "No policy files found.\n", empty=True)
     rows = []
     for (run, task, method), g in data.groupby(["run", "task", "method"], sort=False):
         after, before = g["n_params"].to_numpy(), g["n_params_full"].to_numpy()
@@ -1087,7 +1521,27 @@ def write_index(
             [[t, m, f"{s:,}" if s is not None else "—", seeds] for t, m, s, seeds in budgets],
         ),
     ]
-    for section in sections:
+    lines += _section_lines(folder, sections)
+    lines += ["", "## Commands", "", "Training:", "", "```sh"]
+    lines += [r.command or f"# {r.path}: no command recorded in config.yaml" for r in runs]
+    lines += ["```"]
+    evaluations = [ev.meta.get("command") for r in runs for ev in collect.evaluations(r)]
+    evaluations = list(dict.fromkeys(c for c in evaluations if c))
+    if evaluations:
+        lines += ["", "Evaluation:", "", "```sh", *evaluations, "```"]
+    lines += ["", "This report:", "", "```sh", options.command or "adarl report …", "```"]
+    hidden = [s.title for s in sections if s.empty]
+    if hidden:
+        notes = [*notes, f"Not shown (nothing to show for these runs): {', '.join(hidden)}."]
+    if notes:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
+    _write(folder, INDEX, "\n".join(lines) + "\n")
+
+
+def _section_lines(folder: Path, sections: list[Section]) -> list[str]:
+    """index.md's lines for `sections` (those with something to show): text, figures, files."""
+    lines = []
+    for section in (s for s in sections if not s.empty):
         lines += ["", f"## {section.title}", "", section.text.rstrip()]
         pngs = [f for f in section.files if f.suffix == ".png"]
         others = [f for f in section.files if f.suffix not in (".png", ".pdf")]
@@ -1103,14 +1557,4 @@ def write_index(
                 "Files: "
                 + ", ".join(f"[{f.name}]({f.relative_to(folder).as_posix()})" for f in others),
             ]
-    lines += ["", "## Commands", "", "Training:", "", "```sh"]
-    lines += [r.command or f"# {r.path}: no command recorded in config.yaml" for r in runs]
-    lines += ["```"]
-    evaluations = [ev.meta.get("command") for r in runs for ev in collect.evaluations(r)]
-    evaluations = list(dict.fromkeys(c for c in evaluations if c))
-    if evaluations:
-        lines += ["", "Evaluation:", "", "```sh", *evaluations, "```"]
-    lines += ["", "This report:", "", "```sh", options.command or "adarl report …", "```"]
-    if notes:
-        lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
-    _write(folder, INDEX, "\n".join(lines) + "\n")
+    return lines

@@ -235,17 +235,16 @@ def seed_summary(table: pd.DataFrame, suite: str) -> pd.DataFrame:
 
 
 def aggregate(
-    summaries: pd.DataFrame, reps: int = 10_000, confidence: float = 0.95, seed: int = 0
+    summaries: pd.DataFrame, confidence: float = 0.95
 ) -> dict[str, tuple[float, float, float]]:
-    """Mean over seeds of the worst-case and of the average return, each with a percentile
-    bootstrap interval over seeds (`adarl.evaluation.stats.bootstrap_ci`):
-    {"worst": (point, low, high), "average": (...)}."""
+    """Mean over seeds of the worst-case and of the average return, each with its Student-t
+    interval over seeds x̄ ± t_{(1+c)/2, n−1} · s/√n (`adarl.evaluation.stats.mean_ci`; NaN bounds
+    for one seed): {"worst": (point, low, high), "average": (...)}."""
     from adarl.evaluation import stats
 
     out = {}
     for column in ("worst", "average"):
-        values = summaries[column].to_numpy(float).reshape(-1, 1)
-        ci = stats.bootstrap_ci(values, stats.mean, reps=reps, confidence=confidence, seed=seed)
+        ci = stats.mean_ci(summaries[column].to_numpy(float), confidence)
         out[column] = (ci.point, ci.low, ci.high)
     return out
 

@@ -71,7 +71,21 @@ def format_mean_std(mean: float, std: float, count: int, digits: int = 1) -> str
     return f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
-def table_markdown(table: ScoreTable, corner: str = "task", digits: int = 1) -> str:
+FINAL_ROW = "final checkpoint"  # label of the rows that `second` adds to Table 1
+
+
+def _second_cell(second: ScoreTable | None, r: str, c: str, digits: int) -> str:
+    if second is None or r not in second.rows or c not in second.columns:
+        return DASH
+    return second.cell(r, c, digits)
+
+
+def table_markdown(
+    table: ScoreTable, corner: str = "task", digits: int = 1, second: ScoreTable | None = None
+) -> str:
+    """Rows × columns of mean ± std, the best per row in bold; `second` (the same runs scored
+    another way, e.g. at the final checkpoint) adds a plain row `<row>, final checkpoint` under
+    each row."""
     body = []
     for r in table.rows:
         cells = []
@@ -79,11 +93,22 @@ def table_markdown(table: ScoreTable, corner: str = "task", digits: int = 1) -> 
             text = table.cell(r, c, digits)
             cells.append(f"**{text}**" if table.best.at[r, c] and text != DASH else text)
         body.append([r, *cells])
+        if second is not None:
+            body.append(
+                [f"{r}, {FINAL_ROW}", *(_second_cell(second, r, c, digits) for c in table.columns)]
+            )
     return markdown_table([corner, *table.columns], body)
 
 
-def table_latex(table: ScoreTable, corner: str = "task", digits: int = 1, caption: str = "") -> str:
-    """A booktabs `tabular` (inside a `table` float when a caption is given)."""
+def table_latex(
+    table: ScoreTable,
+    corner: str = "task",
+    digits: int = 1,
+    caption: str = "",
+    second: ScoreTable | None = None,
+) -> str:
+    """A booktabs `tabular` (inside a `table` float when a caption is given); `second` as in
+    `table_markdown`."""
     spec = "l" + "r" * len(table.columns)
     lines = [
         rf"\begin{{tabular}}{{{spec}}}",
@@ -91,12 +116,19 @@ def table_latex(table: ScoreTable, corner: str = "task", digits: int = 1, captio
         " & ".join(latex_escape(x) for x in [corner, *table.columns]) + r" \\",
         r"\midrule",
     ]
+
+    def tex(text: str) -> str:
+        return text.replace(" ± ", r" $\pm$ ").replace(DASH, "--")
+
     for r in table.rows:
         cells = []
         for c in table.columns:
-            text = table.cell(r, c, digits).replace(" ± ", r" $\pm$ ").replace(DASH, "--")
+            text = tex(table.cell(r, c, digits))
             cells.append(rf"\textbf{{{text}}}" if table.best.at[r, c] and text != "--" else text)
         lines.append(" & ".join([latex_escape(r), *cells]) + r" \\")
+        if second is not None:
+            cells = [tex(_second_cell(second, r, c, digits)) for c in table.columns]
+            lines.append(" & ".join([latex_escape(f"{r}, {FINAL_ROW}"), *cells]) + r" \\")
     lines += [r"\bottomrule", r"\end{tabular}"]
     if caption:
         lines = [
@@ -109,21 +141,28 @@ def table_latex(table: ScoreTable, corner: str = "task", digits: int = 1, captio
     return "\n".join(lines) + "\n"
 
 
-def table_csv(table: ScoreTable, corner: str = "task") -> str:
-    """Long form: one line per cell with `mean, std, seeds, best`."""
-    rows = [
-        {
-            corner: r,
-            "method": c,
-            "mean": table.mean.at[r, c],
-            "std": table.std.at[r, c],
-            "seeds": int(table.count.at[r, c]),
-            "best": bool(table.best.at[r, c]),
-        }
-        for r in table.rows
-        for c in table.columns
-        if table.count.at[r, c] > 0
-    ]
+def table_csv(table: ScoreTable, corner: str = "task", second: ScoreTable | None = None) -> str:
+    """Long form: one line per cell with `mean, std, seeds, best`, and with `second` its
+    `final_mean, final_std, final_seeds`."""
+    rows = []
+    for r in table.rows:
+        for c in table.columns:
+            if table.count.at[r, c] == 0:
+                continue
+            row = {
+                corner: r,
+                "method": c,
+                "mean": table.mean.at[r, c],
+                "std": table.std.at[r, c],
+                "seeds": int(table.count.at[r, c]),
+                "best": bool(table.best.at[r, c]),
+            }
+            if second is not None:
+                found = r in second.rows and c in second.columns
+                row["final_mean"] = second.mean.at[r, c] if found else np.nan
+                row["final_std"] = second.std.at[r, c] if found else np.nan
+                row["final_seeds"] = int(second.count.at[r, c]) if found else 0
+            rows.append(row)
     return pd.DataFrame(rows).to_csv(index=False, float_format="%.6g")
 
 

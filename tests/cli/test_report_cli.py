@@ -81,6 +81,113 @@ def test_statistics_tables(built):
     assert sac["tasks"] == "hopper walker2d" and sac["point"] > 0.5
 
 
+def _last5(run_dir) -> pd.Series:
+    """Each seed's mean over its last 5 evaluations in eval.csv, computed here from the file."""
+    log = pd.read_csv(run_dir / "eval.csv")
+    per_eval = log.groupby(["seed", "step"])["return"].mean().unstack()
+    return per_eval.iloc[:, -5:].mean(axis=1)
+
+
+def test_scores_are_the_mean_of_the_last_evaluations_with_the_final_checkpoint_beside(built, sweep):
+    table1 = pd.read_csv(built / "tables" / "table1.csv").set_index(["task", "method"])
+    for task in ("hopper", "walker2d"):
+        recent = _last5(sweep / task / "adarl")
+        final = pd.read_csv(sweep / task / "adarl" / "eval.csv").query("step == 10000")
+        final = final.groupby("seed")["return"].mean()
+        cell = table1.loc[(task, "adarl")]
+        assert cell["mean"] == pytest.approx(recent.mean(), rel=1e-5)  # CSV: 6 digits
+        assert cell["std"] == pytest.approx(recent.std(ddof=1), rel=1e-5)
+        assert cell["final_mean"] == pytest.approx(final.mean(), rel=1e-5)
+    line = ("score: mean of the last 5 evaluations (steps 2,000–10,000), 2 episodes each; final "
+            "checkpoint (the last evaluation in eval.csv) in ")  # fmt: skip
+    for name, where in (("table1.md", "the rows “<task>, final checkpoint”"),
+                        ("per_task.md", "the column “final checkpoint”"),
+                        ("aggregate.md", "the columns “…, final checkpoint”")):  # fmt: skip
+        assert line + where in (built / "tables" / name).read_text(), name
+    md = (built / "tables" / "table1.md").read_text().splitlines()
+    assert md[3].startswith("| hopper, final checkpoint | 10")  # final ≈ 1000 · quality
+    scores = pd.read_csv(built / "tables" / "scores.csv")
+    assert {"score", "final", "evaluations", "first_step", "last_step"} <= set(scores.columns)
+
+
+def test_per_task_means_and_differences_use_t_intervals(built):
+    import scipy.stats
+
+    scores = pd.read_csv(built / "tables" / "scores.csv")
+    per_task = pd.read_csv(built / "tables" / "per_task.csv").set_index(["task", "method"])
+    diffs = pd.read_csv(built / "tables" / "differences.csv").set_index(["task", "baseline"])
+    assert set(diffs.index) == {("hopper", "sac"), ("hopper", "adarl (ratio rule)"),
+                                ("walker2d", "sac")}  # fmt: skip
+    for task in ("hopper", "walker2d"):
+        on_task = scores[scores["task"] == task]
+        x = on_task.loc[on_task["method"] == "adarl", "score"].to_numpy()
+        y = on_task.loc[on_task["method"] == "sac", "score"].to_numpy()
+        one = scipy.stats.ttest_1samp(x, 0.0).confidence_interval(0.95)
+        row = per_task.loc[(task, "adarl")]
+        assert (row["mean_low"], row["mean_high"]) == pytest.approx((one.low, one.high), rel=1e-5)
+        welch = scipy.stats.ttest_ind(x, y, equal_var=False).confidence_interval(0.95)
+        row = diffs.loc[(task, "sac")]
+        assert row["difference"] == pytest.approx(x.mean() - y.mean(), rel=1e-5)
+        assert (row["low"], row["high"]) == pytest.approx((welch.low, welch.high), rel=1e-5)
+        assert row["p_value"] == pytest.approx(0.1) and row["seeds"] == "3 vs 3"  # 20 splits
+    index = (built / "index.md").read_text()
+    assert "## Differences from adarl per task" in index and "**Power.**" in index
+    poi = (built / "tables" / "probability_of_improvement.md").read_text()
+    assert "detectable at 80% (per task)" in poi and "hopper " in poi
+
+
+def test_one_method_or_one_seed_shows_no_aggregate_or_comparison(tmp_path, no_figures):
+    """The quickstart's report: one method, one seed. No aggregate, profile or probability of
+    improvement (nothing to compare), no interval from one seed; one note says why."""
+    write_run(tmp_path / "runs", "a", algo="adarl", seeds=(0,))
+    out = tmp_path / "report"
+    assert main(["report", str(tmp_path / "runs"), "--out", str(out)]) == 0
+    index = (out / "index.md").read_text()
+    for absent in ("## Aggregate", "## Per-task", "## Probability of improvement",
+                   "## Performance profiles", "## Differences", "IQM", "## Bias–variance"):  # fmt: skip
+        assert absent not in index, absent
+    assert "One seed per task and method: no intervals" in index
+    hidden = next(line for line in index.splitlines() if line.startswith("- Not shown"))
+    assert "Bias–variance" in hidden and "Rank-rule ablation" in hidden
+    assert not (out / "tables" / "aggregate.csv").exists()
+    # one method, three seeds: per-task means with their intervals, still no comparison
+    write_run(tmp_path / "runs3", "a", algo="adarl", seeds=(0, 1, 2))
+    assert main(["report", str(tmp_path / "runs3"), "--out", str(out)]) == 0
+    index = (out / "index.md").read_text()
+    assert "## Per-task means" in index and "## Aggregate" not in index
+    assert "One method: no aggregate statistics" in index
+
+
+def test_last_k(tmp_path, capsys, no_figures):
+    run = write_run(tmp_path / "runs", "a", algo="sac", seeds=(0, 1), n_evals=3)
+    out = tmp_path / "report"
+    argv = ["report", str(run), "--out", str(out), "--bootstrap-reps", "20"]
+    assert main([*argv, "--last-k", "1"]) == 0
+    cell = pd.read_csv(out / "tables" / "table1.csv").iloc[0]
+    assert cell["mean"] == pytest.approx(cell["final_mean"])  # the last evaluation is the final
+    assert main(argv) == 0  # k = 5 with 3 evaluations: all 3, and the report says so
+    cell = pd.read_csv(out / "tables" / "table1.csv").iloc[0]
+    log = pd.read_csv(run / "eval.csv")
+    assert cell["mean"] == pytest.approx(log.groupby("step")["return"].mean().mean(), rel=1e-5)
+    index = (out / "index.md").read_text()
+    assert "fewer evaluations than that, all of them used: hopper sac (3)" in index
+    assert "3 evaluation(s) logged, fewer than --last-k 5" in index
+    _fails([*argv, "--last-k", "0"], capsys, "--last-k must be ≥ 1, got 0")
+
+
+def test_a_report_recomputes_its_tables_from_its_scores(built, sweep, tmp_path, no_figures, capsys):
+    out = tmp_path / "again"
+    assert main(["report", str(built), "--out", str(out), "--bootstrap-reps", "200"]) == 0
+    for name in ("table1.csv", "per_task.csv", "aggregate.csv", "differences.csv",
+                 "probability_of_improvement.csv", "performance_profiles.csv"):  # fmt: skip
+        assert (out / "tables" / name).read_text() == (built / "tables" / name).read_text(), name
+    assert "from the per-seed scores of" in (out / "index.md").read_text()
+    csv = str(built / "tables" / "scores.csv")
+    _fails(["report", csv, str(sweep), "--out", str(tmp_path / "x")], capsys, "not both")
+    _fails(["report", csv, "--out", str(tmp_path / "x"), "--contrast", "algo"], capsys,
+           "--contrast needs run folders")  # fmt: skip
+
+
 def test_index_links_everything_and_states_budget_seeds_and_commands(built):
     index = (built / "index.md").read_text()
     for text in ("## Budget and seeds", "10,000", "0 1 2", "## Table 1", "## Robustness",
@@ -195,7 +302,12 @@ def test_contrast_tables_each_value_against_the_reference(tmp_path, no_figures, 
     assert (physics["ci low"] <= physics["difference"]).all() and (
         physics["difference"] <= physics["ci high"]
     ).all()
-    assert (physics["difference"] > 200).all()  # quality +0.3 ≈ +300 return
+    # quality +0.3 is +300 at the last evaluation and +180 over the last five (steps 2k–10k of
+    # 10k, returns ∝ step: mean 0.6 of the final one), the default score
+    assert (physics["difference"] > 120).all() and (physics["difference"] < 240).all()
+    # 3 seeds a side: 20 splits, so the exact permutation p is at least 2/20
+    assert (physics["p"] >= 0.1 - 1e-9).all() and (physics["seeds"] == "3 vs 3").all()
+    assert (physics["detectable"] > 0).all() and (physics["seeds_for_target"] >= 2).all()
     version = pd.read_csv(out / "tables" / "contrast_model_version.csv")
     assert (
         set(version["contrast"]) == {"model_version: v4 − v5"} and (version["difference"] < 0).all()
@@ -236,5 +348,6 @@ def test_behaviour_table_prefers_adarl_evaluate_with_distance(tmp_path, no_figur
     index = (out / "index.md").read_text()
     assert (
         "## What the final policies do" in index
-        and "| hopper | sac-sparse | 600 ± 566 | 2.50 ± 2.12 |" in index
+        and "| hopper | sac-sparse | 600 ± 566 | 2.50 ± 2.12 | falls 1, moves 1 |" in index
+        and "| hopper | sac | 1000 ± 0 | — | stands or moves 2 |" in index
     )

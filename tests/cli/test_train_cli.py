@@ -183,7 +183,9 @@ def test_report_flag_writes_the_report_and_the_summary_names_it(tmp_path, capsys
     out = capsys.readouterr().out
     assert (run_dir / "report" / "index.md").is_file()
     assert "done: sac on hopper, 1 seed(s) x 2,000 steps" in out
-    assert "final nominal return: " in out and f"report: {run_dir}/report/index.md" in out
+    assert "\nnominal return: " in out and "\nfinal checkpoint: " in out
+    assert "\nwhat the final policy does: episodes last " in out and " of 200 steps" in out  # smoke
+    assert f"report: {run_dir}/report/index.md" in out
 
 
 def test_quickstart_reports_unless_told_not_to():

@@ -146,8 +146,9 @@ def test_rnac_final_checkpoint_by_default_and_best_on_request(tmp_path, no_figur
     assert "rnac (best checkpoint): each seed's best checkpoint" in md
     assert "850.4 ± 70.9" in md  # mean ± std of 900.5 and 800.25
     runs = pd.read_csv(best / "tables" / "runs.csv")
-    source = runs.loc[runs["method"] == "rnac (best checkpoint)", "final return from"].item()
+    source = runs.loc[runs["method"] == "rnac (best checkpoint)", "score from"].item()
     assert source == "best checkpoint by evaluation (steps seed 0: 4000, seed 1: 6000)"
+    assert "hopper rnac (best checkpoint): the best checkpoint's evaluation return" in md
     assert "--rnac-checkpoint best" in (best / "index.md").read_text()
     # without a best record (an older run): the best nominal evaluation in eval.csv
     (next((run / "checkpoints").iterdir()) / "meta.json").write_text('{"step": 10000}')

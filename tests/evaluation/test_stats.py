@@ -121,3 +121,155 @@ def test_difference_ci_against_a_numpy_loop():
     assert got.low < got.point < got.high
     same = stats.difference_ci(np.full(3, 2.0), np.full(5, 2.0), reps=100)
     assert (same.point, same.low, same.high) == (0.0, 0.0, 0.0)
+
+
+# ----------------------------------------------------------------------------- few seeds
+X = np.array([812.0, 1430.0, 265.0, 990.0, 1211.0])
+Y = np.array([402.0, 655.0, 310.0, 1020.0])
+
+
+def test_t_intervals_equal_scipy():
+    one = stats.mean_ci(X, 0.9)
+    expected = scipy.stats.ttest_1samp(X, 0.0).confidence_interval(0.9)
+    assert one.point == pytest.approx(X.mean())
+    assert (one.low, one.high) == pytest.approx((expected.low, expected.high))
+    welch = stats.welch_difference_ci(X, Y)
+    expected = scipy.stats.ttest_ind(X, Y, equal_var=False).confidence_interval(0.95)
+    assert welch.point == pytest.approx(X.mean() - Y.mean())
+    assert (welch.low, welch.high) == pytest.approx((expected.low, expected.high))
+    paired = stats.paired_difference_ci(X[:4], Y)
+    expected = scipy.stats.ttest_rel(X[:4], Y).confidence_interval(0.95)
+    assert paired.point == pytest.approx((X[:4] - Y).mean())
+    assert (paired.low, paired.high) == pytest.approx((expected.low, expected.high))
+
+
+def test_no_interval_from_one_seed():
+    assert np.isnan(stats.mean_ci([5.0]).low) and stats.mean_ci([5.0]).point == 5.0
+    assert np.isnan(stats.welch_difference_ci([5.0], Y).high)
+    same = stats.welch_difference_ci(np.full(3, 2.0), np.full(4, 1.0))
+    assert (same.point, same.low, same.high) == (1.0, 1.0, 1.0)
+    with pytest.raises(ValueError):
+        stats.paired_difference_ci(X, Y)
+
+
+def _mean_difference(a, b, axis=-1):
+    return np.mean(a, axis=axis) - np.mean(b, axis=axis)
+
+
+@pytest.mark.parametrize(
+    "x, y",
+    [(X, Y), (X[:3], Y[:3]), (np.array([1.0, 2.0, 2.0]), np.array([2.0, 2.0, 3.0, 3.0]))],
+)
+def test_permutation_p_value_equals_scipy_exact(x, y):
+    expected = scipy.stats.permutation_test(
+        (x, y), _mean_difference, permutation_type="independent", n_resamples=np.inf
+    ).pvalue
+    assert stats.permutation_p_value(x, y) == pytest.approx(expected)
+
+
+def test_three_seeds_a_side_cannot_reach_five_percent():
+    # 20 splits of 6 seeds into 3 + 3: the most extreme split has p = 2/20
+    assert stats.permutation_p_value([10.0, 11.0, 12.0], [0.0, 1.0, 2.0]) == pytest.approx(0.1)
+
+
+def test_permutation_p_value_samples_when_there_are_too_many_splits(monkeypatch):
+    rng = np.random.default_rng(5)
+    x, y = rng.normal(1.0, 1.0, 12), rng.normal(0.0, 1.0, 12)  # C(24, 12) = 2.7 million splits
+    exact = scipy.stats.permutation_test(
+        (x, y), _mean_difference, permutation_type="independent", n_resamples=20_000, rng=1
+    ).pvalue
+    got = stats.permutation_p_value(x, y, resamples=20_000, seed=2)
+    assert got == pytest.approx(exact, abs=0.01)
+
+
+@pytest.mark.parametrize("n", [3, 6, 19])
+def test_sign_flip_p_value_equals_scipy(n):
+    rng = np.random.default_rng(n)
+    x, y = rng.normal(0.5, 1.0, n), rng.normal(0.0, 1.0, n)
+    exact = n <= 17
+    expected = scipy.stats.permutation_test(
+        (x, y), _mean_difference, permutation_type="samples",
+        n_resamples=np.inf if exact else 50_000, rng=3,
+    ).pvalue  # fmt: skip
+    got = stats.paired_permutation_p_value(x, y, resamples=50_000, seed=4)
+    assert got == pytest.approx(expected, abs=0 if exact else 0.01)
+    assert stats.paired_permutation_p_value([3.0, 4.0, 5.0], [0.0, 0.0, 0.0]) == 0.25  # 2 / 2³
+
+
+def test_pooled_sd_by_hand():
+    x, y = np.array([1.0, 3.0]), np.array([2.0, 4.0, 6.0])  # squares 2 + 8, df 3
+    assert stats.pooled_sd(x, y) == pytest.approx(np.sqrt(10.0 / 3.0))
+    assert np.isnan(stats.pooled_sd([1.0], [2.0]))
+
+
+# ----------------------------------------------------------------------------- power
+def power_by_integral(lam: float, df: int, alpha: float = 0.05) -> float:
+    """P(|Z + λ| / √(V/df) > t_crit), Z ~ N(0, 1), V ~ χ²_df, integrated over V: the power of a
+    two-sided t-test from its definition, without the noncentral t distribution."""
+    import scipy.integrate
+
+    crit = scipy.stats.t.ppf(1 - alpha / 2, df)
+
+    def integrand(v):
+        bound = crit * np.sqrt(v / df)
+        tails = scipy.stats.norm.sf(bound - lam) + scipy.stats.norm.cdf(-bound - lam)
+        return tails * scipy.stats.chi2.pdf(v, df)
+
+    return scipy.integrate.quad(integrand, 0, np.inf, limit=200)[0]
+
+
+@pytest.mark.parametrize("n_x, n_y, delta", [(3, 3, 500.0), (5, 4, 300.0), (10, 10, 250.0)])
+def test_two_sample_power_equals_the_integral(n_x, n_y, delta):
+    sd = 400.0
+    lam = delta / (sd * np.sqrt(1 / n_x + 1 / n_y))
+    expected = power_by_integral(lam, n_x + n_y - 2)
+    assert stats.t_test_power(delta, sd, n_x, n_y) == pytest.approx(expected, abs=1e-6)
+
+
+def test_two_sample_power_by_simulation():
+    rng = np.random.default_rng(0)
+    n, sd, delta, sims = 5, 400.0, 600.0, 20_000
+    x, y = rng.normal(delta, sd, (sims, n)), rng.normal(0.0, sd, (sims, n))
+    rejected = np.mean(scipy.stats.ttest_ind(x, y, axis=1).pvalue < 0.05)
+    assert stats.t_test_power(delta, sd, n, n) == pytest.approx(rejected, abs=0.015)  # 4.5 SE
+
+
+def test_paired_power_equals_the_integral_and_simulation():
+    sd, n, delta = 200.0, 6, 250.0
+    expected = power_by_integral(delta * np.sqrt(n) / sd, n - 1)
+    assert stats.paired_t_test_power(delta, sd, n) == pytest.approx(expected, abs=1e-6)
+    d = np.random.default_rng(1).normal(delta, sd, (20_000, n))
+    rejected = np.mean(scipy.stats.ttest_1samp(d, 0.0, axis=1).pvalue < 0.05)
+    assert stats.paired_t_test_power(delta, sd, n) == pytest.approx(rejected, abs=0.015)
+
+
+@pytest.mark.parametrize("n_x, n_y", [(3, 3), (5, 5), (5, 3), (10, 10)])
+def test_minimum_detectable_difference_has_80_percent_power(n_x, n_y):
+    sd = 400.0
+    mdd = stats.minimum_detectable_difference(sd, n_x, n_y)
+    lam = mdd / (sd * np.sqrt(1 / n_x + 1 / n_y))
+    assert power_by_integral(lam, n_x + n_y - 2) == pytest.approx(0.8, abs=1e-6)
+    paired = stats.paired_minimum_detectable_difference(sd, n_x)
+    assert power_by_integral(paired * np.sqrt(n_x) / sd, n_x - 1) == pytest.approx(0.8, abs=1e-6)
+
+
+def test_seeds_per_arm_is_the_smallest_with_80_percent_power():
+    # Cohen (1988), Table 2.4.1: d = 1 needs 17 per group, d = 0.5 needs 64 (α = 0.05, two-sided)
+    assert stats.seeds_per_arm(1.0, 1.0) == 17 and stats.seeds_per_arm(0.5, 1.0) == 64
+    sd = 538.0  # AdaRL's seeds on Hopper at 100k steps (README)
+    n = stats.seeds_per_arm(300.0, sd)
+    lam = lambda k: 300.0 / (sd * np.sqrt(2 / k))  # noqa: E731
+    assert power_by_integral(lam(n), 2 * n - 2) >= 0.8 > power_by_integral(lam(n - 1), 2 * n - 4)
+    m = stats.paired_seeds_needed(300.0, sd)
+    plam = lambda k: 300.0 * np.sqrt(k) / sd  # noqa: E731
+    assert power_by_integral(plam(m), m - 1) >= 0.8 > power_by_integral(plam(m - 1), m - 2)
+    assert np.isnan(stats.seeds_per_arm(300.0, float("nan")))
+    assert stats.minimum_detectable_difference(0.0, 3, 3) == 0.0
+
+
+def test_compare_groups_bundles_the_pieces():
+    c = stats.compare_groups(X, Y, target=300.0)
+    assert c.difference == stats.welch_difference_ci(X, Y)
+    assert c.p_value == stats.permutation_p_value(X, Y) and (c.n_x, c.n_y) == (5, 4)
+    assert c.detectable == stats.minimum_detectable_difference(stats.pooled_sd(X, Y), 5, 4)
+    assert c.seeds_for_target == stats.seeds_per_arm(300.0, stats.pooled_sd(X, Y))

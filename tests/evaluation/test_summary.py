@@ -1,8 +1,11 @@
 """The end-of-training summary, from synthetic run folders."""
 
+import numpy as np
+import pandas as pd
+
 from adarl.evaluation import collect
 from adarl.evaluation.runs import load_run
-from adarl.evaluation.summary import duration, sweep_example, training_summary
+from adarl.evaluation.summary import behaviour_line, duration, sweep_example, training_summary
 from adarl.evaluation.synthetic import write_run
 
 
@@ -11,12 +14,26 @@ def test_duration():
 
 
 def test_summary_of_an_adarl_run_has_returns_ranks_files_and_next_commands(tmp_path):
-    run_dir = write_run(tmp_path, "run", algo="adarl", seeds=(0, 1, 2))
-    scores = collect.final_scores(load_run(run_dir))[0]["score"].to_numpy()
+    run_dir = write_run(tmp_path, "run", algo="adarl", seeds=(0, 1, 2), n_evals=7)
+    log = pd.read_csv(run_dir / "eval.csv")  # 7 evaluations of 2 episodes per seed
+    per_eval = log.groupby(["seed", "step"])["return"].mean().unstack()  # seeds × steps
+    recent = per_eval.iloc[:, -5:].mean(axis=1).to_numpy()  # the last 5 evaluations
+    final = per_eval.iloc[:, -1].to_numpy()
     text = training_summary(run_dir, 125.0)
     lines = text.splitlines()
     assert lines[0] == "done: adarl on hopper, 3 seed(s) x 10,000 steps, wall time 2m05s"
-    assert f"final nominal return: {scores.mean():.1f} ± {scores.std(ddof=1):.1f}" in lines[1]
+    assert lines[1].startswith(
+        f"nominal return: {recent.mean():.1f} ± {recent.std(ddof=1):.1f} (mean of the last 5 "
+        f"evaluation(s), steps {per_eval.columns[-5]:,}–10,000, 2 episode(s) each; seed 0: "
+        f"{recent[0]:.1f}"
+    )
+    assert lines[2].startswith(f"final checkpoint: {final.mean():.1f} ± {final.std(ddof=1):.1f}")
+    assert lines[3] == (
+        "what the final policies do: episodes last 1,000 of 1,000 steps on average, forward "
+        "distance not recorded (`adarl evaluate` records it): all 3 seeds stands or moves "
+        "(full length; the forward distance would tell which)"
+    )
+    assert f"  adarl evaluate {run_dir}   # records forward distance" in lines
     ranks = collect.final_ranks(load_run(run_dir))
     actor = ranks[ranks["layer"] == ranks["layer"].iloc[0]]["rank"]
     assert f"{ranks['layer'].iloc[0]} {actor.mean():.1f}" in text
@@ -38,3 +55,30 @@ def test_sweep_example_spans_the_training_range():
     assert sweep_example("hopper") == "--sweep torso_length=0.2:0.6:9"  # 0.4 + 0.2·sin(0.2·i)
     assert sweep_example("ant") == "--sweep gravity=9.81:19.62:9"  # 14.715 + 4.905·sin(0.5·i)
     assert sweep_example("no-such-task") == ""
+
+
+def test_summary_says_a_run_with_few_evaluations_and_a_falling_policy(tmp_path):
+    run_dir = write_run(tmp_path, "run", algo="sac", seeds=(0,), n_evals=3)
+    log = pd.read_csv(run_dir / "eval.csv")
+    log["length"] = np.where(log["step"] == log["step"].max(), 136, 1000)  # falls at the end
+    log.to_csv(run_dir / "eval.csv", index=False)
+    lines = training_summary(run_dir, 3.0).splitlines()
+    mean = log.groupby("step")["return"].mean().mean()  # all 3 evaluations: fewer than 5
+    assert lines[1].startswith(f"nominal return: {mean:.1f} (mean of the last 3 evaluation(s)")
+    assert lines[3] == (
+        "what the final policy does: episodes last 136 of 1,000 steps, forward distance not "
+        "recorded (`adarl evaluate` records it): falls (episodes end early by termination)"
+    )
+
+
+def test_behaviour_line_with_distance():
+    table = pd.DataFrame(
+        {"seed": [0, 1, 2], "length": [136.0, 1000.0, 990.0], "distance": [1.5, 0.4, 9.0],
+         "max_length": 1000}
+    )  # fmt: skip
+    assert behaviour_line(table) == (
+        "what the final policies do: episodes last 709 of 1,000 steps on average, forward "
+        "distance 3.63 m; falls (episodes end early by termination): seed 0; stands (full "
+        "length, less than 3 m forward): seed 1; moves (long episodes, at least 3 m forward): "
+        "seed 2"
+    )
