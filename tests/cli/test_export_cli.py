@@ -30,3 +30,21 @@ def test_export_bad_input(tmp_path, capsys):
     assert main(["export", str(tmp_path), "--out", str(tmp_path / "p.npz")]) == 2
     assert "is not a run folder" in capsys.readouterr().err
     assert not (tmp_path / "p.npz").exists()
+
+
+def test_export_counts_full_rank_at_the_configured_width_even_from_old_policy_files(
+    tmp_path, capsys
+):
+    """Policy files of earlier versions recorded `n_params_full` at the compacted width (the
+    largest rank across seeds); the full-rank size comes from the shapes instead: obs 11 → 16,
+    a 16·16 + 16·16 bottleneck with bias, 16 → 3, counted by hand."""
+    from adarl.evaluation.synthetic import policy_arrays
+
+    arrays = policy_arrays(11, 3, hidden=16, rank=2)
+    arrays["n_params_full"] = np.array(999)  # what an older adarl may have written
+    source = tmp_path / "old.npz"
+    np.savez(source, **arrays)
+    full = (11 * 16 + 16) + (16 * 16 + 16 * 16 + 16) + (16 * 3 + 3)
+    kept = (11 * 16 + 16) + (16 * 2 + 2 * 16 + 16) + (16 * 3 + 3)
+    assert load(source).n_params_full() == full
+    assert load(source).n_params() == kept
