@@ -203,3 +203,19 @@ def t_interval(
         q = scipy.stats.t.ppf((1.0 + confidence) / 2.0, np.maximum(n - 1, 1))
         half = np.where(n > 1, q * sd / np.sqrt(np.maximum(n, 1)), 0.0)
     return centre, centre - half, centre + half
+
+
+def paired_difference_ci(x: np.ndarray, y: np.ndarray, confidence: float = 0.95) -> Interval:
+    """mean(X − Y) of paired seeds (x[i] and y[i] share seed i) with the Student-t interval of
+    the per-seed differences d = x − y: d̄ ± t_{(1+c)/2, n−1} · s_d/√n (`scipy.stats.ttest_rel`);
+    NaN bounds for fewer than two pairs. Pairing removes what the two arms share (a forked
+    control shares AdaRL's whole prefix), so it is far tighter than comparing two groups."""
+    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    if x.shape != y.shape:
+        raise ValueError(f"paired samples need the same number of seeds, got {x.size} and {y.size}")
+    d = x - y
+    if d.size < 2:
+        point = float(d.mean()) if d.size else float("nan")
+        return Interval(point, float("nan"), float("nan"))
+    centre, low, high = t_interval(d, confidence)
+    return Interval(float(centre), float(low), float(high))
