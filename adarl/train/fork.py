@@ -84,13 +84,13 @@ def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) ->
         raise UsageError(
             f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(family)})"
         )
+    config, changed = forked_config(algo, before, changes)
     step = fork_step(before, at)
     points = fork_points(parent)
     if step not in points:
         raise UsageError(
             f"{parent} has no checkpoint at step {step}; fork points: {describe_points(points)}"
         )
-    config, changed = forked_config(algo, before, changes)
     checkpoint = points[step]
     pre = checkpoint.parent.name == Path(rf.PRE_TRUNCATION_DIR).name
     if config.total_steps < step or (config.total_steps == step and not pre):
