@@ -557,7 +557,10 @@ def control_section(
         "difference. Per-seed rows: tables/control_pairs.csv.\n\n" + md
     )
     if forks:
-        text += "\n\nForked controls (they share AdaRL's training up to that step):\n"
+        text = (
+            text.rstrip("\n")
+            + "\n\nForked controls (they share AdaRL's training up to that step):\n"
+        )
         text += "\n".join(forks) + "\n"
     return Section(title, text, files)
 

@@ -165,6 +165,8 @@ class SweepRun:
                 self.line(unit, "done", "(finished before; skipped)")
             else:
                 self.manifest.update(unit.id, status="queued", error=None)
+                if state == "start" and unit.fork_of:
+                    state = f"start: a fork of {unit.fork_of} at step {unit.fork_step:,}"
                 self.line(unit, "queued", f"({state})")
         for unit in longest_first(self.sweep, self.out):
             if self.manifest.unit(unit.id)["status"] == "queued":

@@ -7,7 +7,7 @@ It dies with the process that started it (Linux), holds the unit's lock file whi
 two processes can never train into the same run folder), then decides, under the lock, what the
 attempt does: nothing if the run is DONE, `adarl train --resume RUN` if the run has a complete
 checkpoint, and otherwise `adarl train TRAIN_ARGS --out RUN` from scratch (removing a run folder
-that a kill left without any checkpoint, or a fork killed before its config.yaml was written). It writes MARKER (JSON: attempt, pid, host, mode, step)
+that a kill left without any checkpoint). It writes MARKER (JSON: attempt, pid, host, mode, step)
 once it has decided, which is how the sweep learns that the unit is running.
 """
 
@@ -61,8 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     step = 0
     if (run_dir / "DONE").exists():
         mode = "done"
-    # a fork writes its config.yaml last: a folder without one is a fork interrupted while made
-    elif checkpoint_dirs(run_dir) and (run_dir / "config.yaml").exists():
+    elif checkpoint_dirs(run_dir):
         mode, step = "resume", int(checkpoint_dirs(run_dir)[-1].name.split("_")[1])
     else:
         mode = "fresh"

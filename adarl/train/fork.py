@@ -199,8 +199,9 @@ def check_forkable(parent, child) -> dict:
 
 def write(fork: Fork, out: Path, command: str) -> None:
     """Create the child run folder `out` (new or empty): CSV rows up to the fork point,
-    spectra before it, its first checkpoint, environment.json, then config.yaml (last: a folder
-    without it is not a run, so an interrupted fork is never mistaken for one)."""
+    spectra before it, environment.json, config.yaml, then its first checkpoint (last, and
+    atomic: a fork folder without a checkpoint is incomplete, which `--resume` refuses and the
+    sweeps' worker makes again)."""
     out = Path(out)
     io.check_new_run_dir(out)
     arrays, meta = io.load_checkpoint(fork.checkpoint)
@@ -224,6 +225,11 @@ def write(fork: Fork, out: Path, command: str) -> None:
             step = int(spectrum.stem.split("_")[1])
             if step < fork.step or (step == fork.step and not pre):
                 io.atomic_write_bytes(out / "spectra" / spectrum.name, spectrum.read_bytes())
+        from adarl.train.provenance import read_environment
+
+        parent_env = {"parent_environment": read_environment(fork.parent)}
+        io.write_environment(out, {"fork": {**fork.record, **parent_env}})
+        rf.write_config(out, fork.config, fork.algo, command, fork=fork.record)
         files = {
             p.name: p.read_bytes()
             for p in sorted(fork.checkpoint.iterdir())
@@ -234,11 +240,6 @@ def write(fork: Fork, out: Path, command: str) -> None:
         io.save_checkpoint(
             out, fork.step, arrays, meta, keep=fork.config.keep_checkpoints, files=files
         )
-        from adarl.train.provenance import read_environment
-
-        parent_env = {"parent_environment": read_environment(fork.parent)}
-        io.write_environment(out, {"fork": {**fork.record, **parent_env}})
-        rf.write_config(out, fork.config, fork.algo, command, fork=fork.record)
 
 
 def _step(path: Path) -> int:

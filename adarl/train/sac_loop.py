@@ -749,8 +749,10 @@ def _train(config, run_dir: Path, resume: bool, progress: bool, command: str, lo
         if meta is not None:
             run.restore(arrays, meta)
             run.open_logs(rf.csv_offsets(meta))
-        elif rf.load_config(run_dir).get("fork"):  # a fork starts from its copied checkpoint
-            raise UsageError(f"fork {run_dir} has no checkpoint left to start from; fork again")
+        elif rf.load_config(run_dir).get("fork"):  # its first checkpoint is written last
+            raise UsageError(
+                f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
+            )
         else:  # killed before its first checkpoint: start again, keeping nothing half-done
             run.fresh()
             run.open_logs(

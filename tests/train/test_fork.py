@@ -225,6 +225,25 @@ def test_a_fork_refuses_a_folder_in_use(parent, tmp_path):
         fork.write(fork.prepare(parent, 550, {}), tmp_path / "taken", "")
 
 
+def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkeypatch):
+    """The fork's first checkpoint is written last: without it the folder is no fork to
+    resume (the sweeps' worker, which sees no checkpoint, makes it again from scratch)."""
+    planned = fork.prepare(parent, 550, {})
+
+    def killed(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(io, "save_checkpoint", killed)
+    with pytest.raises(KeyboardInterrupt):
+        fork.write(planned, tmp_path / "child", "")
+    monkeypatch.undo()
+    assert (tmp_path / "child" / "config.yaml").exists() and not io.checkpoint_dirs(
+        tmp_path / "child"
+    )
+    with pytest.raises(UsageError, match="was interrupted while being made .*; fork again"):
+        sac_loop.train(planned.config, tmp_path / "child", resume=True, progress=False)
+
+
 def test_forkable_fields_are_config_fields_and_the_sweeps_check_agrees():
     names = {f.name for f in sac.SACConfig.__dataclass_fields__.values()}
     assert set(fork.FORKABLE) <= names
