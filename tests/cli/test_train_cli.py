@@ -30,7 +30,7 @@ from adarl.cli.train import add_arguments, build_config
         (["--algo", "sac-parseval", "--parseval-coef", "0"], "must be > 0 for sac-parseval, got 0"),
         (["--algo", "sac-sparse", "--sparse-width", "-1"], "sparse-width must be"),
         (["--hidden", "64,0"], "hidden sizes must be"),
-        (["--lanes", "0"], "lanes must be > 0, got 0"),
+        (["--lanes", "-1"], "lanes must be ≥ 0, got -1"),
         (["--eval-every", "1001"], "eval-every must be a multiple of update-every (50), got 1001"),
         (
             ["--retain-tolerance", "0"],
@@ -250,7 +250,7 @@ def test_every_config_field_has_its_meaning_in_help(capsys):
     )
     assert "--clip-eps FLOAT PPO's clip range ε; default: 0.2" in out
     # a comment block above a field is its help; a `# --- section` heading is not
-    assert "--lanes INT the seeds form this many lanes" in out
+    assert "--lanes INT 0: every seed is its own lane" in out
     assert "--hidden TUPLE hidden layer widths of actor and critics; default: 64,64" in out
 
 
