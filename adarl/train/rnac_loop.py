@@ -384,13 +384,17 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
     watch = io.DivergenceWatch(run_dir, config.on_divergence)
 
     def check_divergence():
-        """Non-finite update metrics (once there was an update), parameters or returns."""
+        """Non-finite update metrics (once there was an update), parameters, optimiser states
+        or returns."""
         if step >= t_roll:
             for j, name in enumerate(METRICS):
                 watch.note_values(name, seeds, host.metrics[:, j])
         for m, net in enumerate(("actor", "critic")):
             flat = [np.concatenate([np.ravel(x) for x in jax.tree.leaves(p[m])]) for p in params]
             watch.note_values(f"{net} parameters", seeds, flat)
+        for net, opt in (("actor", state.actor_opt), ("critic", state.critic_opt)):  # Adam's
+            leaves = [np.reshape(x, (n_seeds, -1)) for x in jax.tree.leaves(jax.device_get(opt))]
+            watch.note_values(f"{net} optimiser state", seeds, np.concatenate(leaves, axis=1))
         watch.note_values("episode return", seeds, host.ep_return)
         watch.check(step)
 

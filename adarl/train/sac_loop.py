@@ -605,7 +605,7 @@ class Run:
     def check_divergence(self) -> None:
         """Stop the run (or warn once) on non-finite parameters, returns or logged losses."""
         for name, ok in self.gather(lambda lane: _finite_parameters(lane.state)).items():
-            self.watch.note(f"{name} parameters", [s for s, o in zip(self.seeds, ok) if not o])
+            self.watch.note(name, [s for s, o in zip(self.seeds, ok) if not o])
         self.watch.note_values("episode return", self.seeds, self.ep_return)
         self.watch.check(self.step)
 
@@ -670,7 +670,8 @@ def truncation_decision(
 
 @jax.jit
 def _finite_parameters(state: dict) -> dict:
-    """Per seed of a lane: are all actor, critic and temperature parameters finite?"""
+    """Per seed of a lane: are all actor, critic and temperature parameters, and their
+    optimisers' states (Adam's moments), finite? Keyed by the divergence watch's words."""
 
     def finite(tree):
         leaves = jax.tree_util.tree_leaves(tree)
@@ -679,9 +680,13 @@ def _finite_parameters(state: dict) -> dict:
         )
 
     return {
-        "actor": finite(state["actor"]),
-        "critic": finite(state["critic"]),
-        "temperature": finite(state["log_alpha"]),
+        "actor parameters": finite(state["actor"]),
+        "critic parameters": finite(state["critic"]),
+        "critic target parameters": finite(state["critic_target"]),
+        "temperature parameters": finite(state["log_alpha"]),
+        "actor optimiser state": finite(state["opt_actor"]),
+        "critic optimiser state": finite(state["opt_critic"]),
+        "temperature optimiser state": finite(state["opt_alpha"]),
     }
 
 

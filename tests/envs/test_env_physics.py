@@ -418,3 +418,31 @@ def test_gym_tasks_have_no_physics_or_versions():
         make("gym:Pendulum-v1", "default", physics="x")
     with pytest.raises(UsageError, match="unknown physics"):
         compile_model("hopper", physics="x")
+
+
+# ------------------------------------------------------------------ the switch at the env level
+def capsule_mass(radius, half_length, density=1000.0):
+    """A capsule's mass from its geometry (MuJoCo's default density), independent of adarl."""
+    return density * (np.pi * radius**2 * 2 * half_length + 4 / 3 * np.pi * radius**3)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("dynamics", ["paper", "ompo", "fixed:torso_length=0.5"])
+@pytest.mark.parametrize("physics", PHYSICS)
+def test_the_env_follows_physics_not_the_dynamics_or_version(physics, dynamics, version):
+    """The model an env steps has masses by `physics` alone: under `ompo` Gymnasium's default
+    masses (read from its XML), under `consistent` the torso's capsule mass at the episode's
+    torso length, whatever the dynamics are called and whichever model version."""
+    default_torso = gymnasium_model("hopper", version).body("torso").mass[0]
+    env = make("hopper", dynamics, seed=2, physics=physics, version=version)
+    lengths = set()
+    for _ in range(3):
+        _, info = env.reset()
+        model = env.unwrapped.model
+        length = info["dynamics"]["torso_length"]
+        lengths.add(length)
+        assert model.geom("torso_geom").size[1] == pytest.approx(length)  # geometry: both
+        expected = default_torso if physics == "ompo" else capsule_mass(0.05, length)
+        assert model.body("torso").mass[0] == pytest.approx(expected, rel=1e-9)
+    assert max(lengths) != 0.2  # the lengths differ from the default: the masses would tell
+    env.close()

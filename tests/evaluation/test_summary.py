@@ -82,3 +82,27 @@ def test_behaviour_line_with_distance():
         "length, less than 3 m forward): seed 1; moves (long episodes, at least 3 m forward): "
         "seed 2"
     )
+
+
+def test_final_ranks_are_those_of_the_last_logged_step(tmp_path):
+    """The summary's final ranks are each seed's ranks at its last train.csv row (read here with
+    the csv module, not with the code under test), and they differ from the first row's."""
+    import csv
+
+    run_dir = write_run(tmp_path, "run", algo="adarl", seeds=(0, 1, 2), n_evals=7)
+    with open(run_dir / "train.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    layers = [c.removeprefix("rank_") for c in rows[0] if c.startswith("rank_")]
+    last = {}
+    for row in rows:  # written in step order; keep each seed's last row
+        last[int(row["seed"])] = row
+    first = {int(r["seed"]): r for r in reversed(rows)}
+    line = next(x for x in training_summary(run_dir, 1.0).splitlines() if x.startswith("final r"))
+    for layer in layers:
+        final = [int(last[s][f"rank_{layer}"]) for s in (0, 1, 2)]
+        assert final != [int(first[s][f"rank_{layer}"]) for s in (0, 1, 2)]  # it did change
+        span = f" ({min(final)}-{max(final)})" if min(final) != max(final) else ""
+        assert f"{layer} {np.mean(final):.1f}{span}" in line, (layer, final, line)
+        table = collect.final_ranks(load_run(run_dir))
+        got = table[table["layer"] == layer].sort_values("seed")["rank"].astype(int).tolist()
+        assert got == final

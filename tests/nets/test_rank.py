@@ -300,3 +300,38 @@ def test_concurrent_truncations_on_two_devices_do_not_deadlock():
         [sys.executable, "-c", STRESS], capture_output=True, text=True, timeout=300
     )
     assert out.returncode == 0 and "done" in out.stdout, out.stderr[-2000:]
+
+
+# Exact ties (Σ share = β, or σ_ℓ/σ_1 = β): spectra of small integers whose cumulative shares are
+# dyadic fractions, so float32 computes them exactly and the rule's ≤ / ≥ / < decides. Expected
+# ranks worked out by hand from each rule's definition (see the reference functions above).
+TIES = [
+    # (rule, sigma, beta, expected r̂)
+    ("energy", [1, 1, 1, 1], 0.5, 2),  # shares .25 .5 .75 1: the first ≥ .5 is ℓ = 2
+    ("energy", [1, 1, 1, 1], 0.75, 3),
+    ("energy", [2, 1, 1], 0.5, 1),  # shares .5 .75 1
+    ("energy", [3, 1], 0.75, 1),  # shares .75 1
+    ("energy", [1, 1, 1, 1, 0, 0, 0, 0], 0.75, 3),
+    ("energy-squared", [1, 1, 1, 1], 0.5, 2),  # σ² shares .25 .5 .75 1
+    ("energy-squared", [2, 1, 1, 1, 1], 0.75, 3),  # σ² = 4 1 1 1 1: shares .5 .625 .75 …
+    ("energy-squared", [2, 1, 1, 1, 1], 0.5, 1),
+    ("cumulative", [1, 1, 1, 1], 0.5, 2),  # Eq. 5: the longest prefix with share ≤ .5
+    ("cumulative", [1, 1, 1, 1], 0.75, 3),
+    ("cumulative", [2, 1, 1], 0.5, 1),
+    ("cumulative", [3, 1], 0.75, 1),
+    ("ratio", [4, 2, 1], 0.5, 2),  # Eq. 7: σ_2/σ_1 = .5 ≤ .5
+    ("ratio", [4, 2, 1], 0.25, 3),  # σ_3/σ_1 = .25
+    ("ratio", [4, 4, 2, 2], 0.5, 3),
+]
+
+
+@pytest.mark.parametrize("rule, sigma, beta, expected", TIES)
+def test_rules_at_an_exact_tie(rule, sigma, beta, expected):
+    s = np.asarray(sigma, np.float32)
+    mass = s.astype(np.float64) ** (2 if rule == "energy-squared" else 1)
+    shares = np.cumsum(mass) / mass.sum()
+    assert beta in shares or rule == "ratio"  # a tie indeed (exact in float32 and float64)
+    assert int(rank.select_rank(jnp.asarray(s), beta, rule)) == expected
+    # under jit and vmap too (the trainer's path)
+    batched = jax.jit(jax.vmap(lambda x: rank.select_rank(x, beta, rule)))(jnp.stack([s, s]))
+    assert np.asarray(batched).tolist() == [expected, expected]

@@ -209,3 +209,65 @@ def test_divergence_watch_names_step_seeds_and_quantity(tmp_path, capsys):
         keep_going.check(step)
     err_text = capsys.readouterr().err
     assert err_text.count("\n") == 1 and "episode return (seed 1)" in err_text
+
+
+# ----------------------------------------------------------------------------- the lock's release
+class Crash(Exception):
+    pass
+
+
+def test_run_lock_is_released_when_its_block_ends_while_the_process_lives(tmp_path):
+    """The lock goes at the end of the `with` block, however the block ends, and not only when
+    the process ends or the RunLock object is collected (both stay alive here)."""
+    run_dir = tmp_path / "run"
+    lock = io.RunLock(run_dir)
+    with lock:
+        lock.acquire(new=True)
+        assert io.lock_holder(run_dir) == str(os.getpid())
+    assert io.lock_holder(run_dir) is None
+    other = io.RunLock(run_dir)
+    with pytest.raises(Crash) as info, other:
+        other.acquire(new=False)
+        raise Crash
+    assert info.value is not None and other is not None  # the traceback holds the frame
+    assert io.lock_holder(run_dir) is None
+    with io.RunLock(run_dir) as again:  # this process can take it again
+        again.acquire(new=False)
+
+
+@pytest.mark.parametrize("algo", ["sac", "rnac"])
+def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, monkeypatch):
+    """A trainer that raises after taking the lock (here: right after config.yaml) has released
+    it by the time the exception reaches the caller, even while the caller keeps the exception
+    (and so the trainer's frames) alive, as a sweep worker or a test does."""
+    from adarl.algos import SAC_FAMILY, rnac, sac
+    from adarl.train import rnac_loop, sac_loop
+
+    def crash(run_dir):
+        assert io.lock_holder(run_dir) == str(os.getpid())  # taken by then
+        raise Crash
+
+    monkeypatch.setattr(io, "write_environment", crash)
+    run_dir = tmp_path / "run"
+    if algo == "sac":
+        values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+        trainer, config = sac_loop.train, sac.SACConfig(**values)
+    else:
+        trainer, config = rnac_loop.train, rnac.RNACConfig(**rnac.PRESETS["smoke"])
+    with pytest.raises(Crash) as info:
+        trainer(config, run_dir, progress=False)
+    assert info.traceback  # kept
+    assert io.lock_holder(run_dir) is None
+
+
+def test_divergence_is_noted_for_one_non_finite_value_among_finite_ones(tmp_path):
+    watch = io.DivergenceWatch(tmp_path, "stop")
+    values = np.ones((3, 5))
+    values[1, 3] = np.nan  # seed 7: one value of five
+    values[2, 0] = -np.inf  # seed 9: one value of five
+    watch.note_values("critic parameters", [5, 7, 9], values)
+    assert watch.found == {"critic parameters": [7, 9]}
+    watch.note_values("loss_q", [5, 7, 9], [1.0, 2.0, 3.0])
+    assert "loss_q" not in watch.found
+    with pytest.raises(Diverged, match=r"critic parameters \(seeds 7, 9\)"):
+        watch.check(100)
