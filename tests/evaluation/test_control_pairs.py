@@ -26,11 +26,12 @@ def test_paired_difference_ci_is_the_t_interval_of_the_differences():
         stats.paired_difference_ci([1.0, 2.0], [1.0])
 
 
-def final_scores(run) -> pd.Series:
-    """Each seed's mean nominal return at the last evaluation of eval.csv."""
+def final_scores(run, k: int = 5) -> pd.Series:
+    """Each seed's score as the report's default: the mean, over the last k evaluations of
+    eval.csv, of each evaluation's mean nominal return."""
     evals = pd.read_csv(run / "eval.csv")
-    last = evals[evals["step"] == evals["step"].max()]
-    return last.groupby("seed")["return"].mean()
+    last = evals[evals["step"].isin(sorted(evals["step"].unique())[-k:])]
+    return last.groupby(["seed", "step"])["return"].mean().groupby("seed").mean()
 
 
 def test_the_report_pairs_adarl_with_its_control_seed_by_seed(tmp_path):

@@ -100,6 +100,7 @@ def test_presets_expand_to_the_documented_protocols():
         "paper-schedule-hopper",
         "physics-power",
         "fixed-rank-power",
+        "claim2-first-look",
     }
     assert len(units["physics"]) == 8  # 2 tasks x physics consistent/ompo x models v5/v4
     table1 = units["paper-table1"]
