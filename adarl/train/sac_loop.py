@@ -29,6 +29,7 @@ import functools
 import math
 import sys
 import time
+import weakref
 from io import BytesIO
 from pathlib import Path
 
@@ -74,9 +75,22 @@ class Compiled:
     diagnostics: callable
 
 
-@functools.lru_cache(maxsize=64)
+# Compiled functions by spec, kept only while a lane uses them: every XLA:CPU executable holds
+# its own memory maps, and a process that keeps the functions of every width it ever used runs
+# into the kernel's limit on maps (vm.max_map_count, 65,530 by default) and crashes in XLA.
+_COMPILED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+
+
 def compile_functions(spec: sac.Spec) -> Compiled:
-    """Jitted functions for `spec` (cached: lanes and runs with the same spec share them)."""
+    """Jitted functions for `spec`, shared by the lanes (and runs) using that spec at the same
+    time and freed, with their executables, once no lane does."""
+    fns = _COMPILED.get(spec)
+    if fns is None:
+        fns = _COMPILED[spec] = _compile_functions(spec)
+    return fns
+
+
+def _compile_functions(spec: sac.Spec) -> Compiled:
     c = spec.config
     vmap = jax.vmap
     append = functools.partial(sac.append_and_update, spec, n_updates=0)
