@@ -26,7 +26,7 @@ from adarl.algos.flags import parse_value, type_text
 from adarl.errors import UsageError, check_choice
 
 # keys config.yaml holds beside the config fields (docs/run-format.md)
-RUN_RECORD_KEYS = ("algo", "format_version", "adarl_version", "command")
+RUN_RECORD_KEYS = ("algo", "format_version", "adarl_version", "command", "fork")
 
 
 def _load(path: str):
@@ -60,6 +60,8 @@ class Algorithm:
     # a config field whose best value per task the main table keeps ("best of N", as the paper
     # does for Parseval's coefficient)
     best_of: str | None = None
+    # the algorithm this one is the schedule-matched control of: the report pairs their seeds
+    control_of: str | None = None
 
     @property
     def config_class(self) -> type:
@@ -89,24 +91,33 @@ def _sparse_label(value) -> str:
 
 
 def _adarl_label(value) -> str:
-    """`adarl`, plus a non-default rank rule, threshold beta or the retain clause's tolerance."""
+    """`adarl` (or `adarl-control`), plus a non-default rank rule, threshold beta or the retain
+    clause's tolerance."""
+    name = str(value("algo", "adarl"))
     rule = str(value("rank_rule", "cumulative"))  # runs from before the field: Eq. 5
     beta, tolerance = value("beta"), value("retain_tolerance")
     parts = [] if rule == DEFAULT_RANK_RULE else [f"{rule} rule"]
     parts += [] if beta is None or float(beta) == DEFAULT_BETA else [f"beta {float(beta):g}"]
     parts += [] if tolerance is None else [f"retain {float(tolerance):g}"]
-    return f"adarl ({', '.join(parts)})" if parts else "adarl"
+    return f"{name} ({', '.join(parts)})" if parts else name
 
 
 # ---------------------------------------------------------------------------- the table
 # the method every other is compared against (probability of improvement), and the paper's
 # Table 1 order of methods in reports; other algorithms follow
 REFERENCE = "adarl"
-REPORT_ORDER = ("adarl", "sac", "sac-parseval", "sac-sparse", "rnac")
+REPORT_ORDER = ("adarl", "adarl-control", "sac", "sac-parseval", "sac-sparse", "rnac")
 # the SAC family: configurations of adarl/algos/sac.py, trained by adarl/train/sac_loop.py
 SAC_FAMILY: dict[str, dict] = {
     "sac": {},
     "adarl": {"bottleneck": ("actor:1", "critic:1"), "adapt_rank": True},
+    # AdaRL's schedule-matched control: the same truncations (SVD re-parameterisation, resets,
+    # warm-up), the rule's rank logged but never applied (docs/algorithms.md)
+    "adarl-control": {
+        "bottleneck": ("actor:1", "critic:1"),
+        "adapt_rank": True,
+        "apply_cuts": False,
+    },
     "sac-fixed-rank": {"bottleneck": ("actor:1", "critic:1"), "adapt_rank": False},
     "sac-parseval": {"parseval_coef": 1e-4, "init": "orthogonal"},
     "sac-sparse": {"sparse_width": 1024},
@@ -114,6 +125,7 @@ SAC_FAMILY: dict[str, dict] = {
 
 SAC_FAMILY_ROLES: dict[str, dict] = {
     "adarl": {"report_label": _adarl_label, "adapts_rank": True},
+    "adarl-control": {"report_label": _adarl_label, "control_of": "adarl"},
     "sac-fixed-rank": {"report_label": _fixed_rank_label, "rank_sweep": True},
     "sac-parseval": {"best_of": "parseval_coef"},
     "sac-sparse": {"report_label": _sparse_label},
@@ -130,6 +142,7 @@ TASK_DEFAULTS: dict[str, dict[str, dict]] = {
         "humanoid": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
     },
 }
+TASK_DEFAULTS["adarl-control"] = TASK_DEFAULTS["adarl"]  # the control runs AdaRL's schedule
 
 ALGORITHMS: dict[str, Algorithm] = {
     **{

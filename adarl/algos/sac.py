@@ -91,6 +91,13 @@ class SACConfig:
     # after a truncation, narrow each bottleneck to the largest rank among the seeds (and
     # recompile): cheaper updates for the rest of the run; False keeps full width, masked
     compact_bottlenecks: bool = True
+    # false: AdaRL's schedule-matched control (--algo adarl-control): every truncation computes
+    # and logs the rule's rank but re-parameterises each bottleneck at its old rank, with the same
+    # optimiser and target resets and warm-up as AdaRL
+    apply_cuts: bool = True
+    # keep a checkpoint of the state just before each truncation in checkpoints/pre_truncation/
+    # (never rotated away): where `adarl train --fork` can start a run that cuts differently
+    checkpoint_before_truncation: bool = True
     # --- regularisers / architectures of the baselines
     parseval_coef: float = 0.0  # c in c·‖WWᵀ − sI‖²_F (sac-parseval)
     parseval_scale: float = 2.0  # s
@@ -193,6 +200,15 @@ class SACConfig:
         width = min(self.hidden)
         if self.rank < 0 or self.rank > width:
             raise UsageError(f"rank must be in 1..{width} (0 = full width), got {self.rank}")
+        if self.algo == "adarl-control" and self.apply_cuts:
+            raise UsageError(
+                "adarl-control is AdaRL without its cuts: apply-cuts must be false for it"
+            )
+        if not self.apply_cuts and self.algo != "adarl-control":
+            raise UsageError(
+                f"apply-cuts false is AdaRL's schedule-matched control: train it as --algo "
+                f"adarl-control, not {self.algo} (a fork with --apply-cuts false switches itself)"
+            )
         if self.algo == "sac-fixed-rank" and self.rank < 1:
             raise UsageError(f"sac-fixed-rank needs --rank in 1..{width}, got {self.rank}")
         if self.target_entropy is not None and not np.isfinite(self.target_entropy):
@@ -527,6 +543,23 @@ def n_truncations(config: SACConfig) -> int:
     return total_updates(config) // iteration
 
 
+def truncation_steps(config: SACConfig) -> list[int]:
+    """The environment steps at which a run of this config truncates, as the loop finds them:
+    chunks end at k·update_every (the last at total_steps), each chunk ending at or after
+    `update_after` runs `update_every` updates, and a truncation follows the chunk after which
+    the updates since the last one reach d_t (an iteration of d_t rounded up to update_every)."""
+    if not config.adapt_rank:
+        return []
+    c = config
+    n_chunks = -(-c.total_steps // c.update_every)
+    first = max(-(-c.update_after // c.update_every), 1)  # the first chunk that updates
+    per_iteration = -(-c.truncate_every // c.update_every)  # updating chunks per iteration
+    return [
+        min(chunk * c.update_every, c.total_steps)
+        for chunk in range(first - 1 + per_iteration, n_chunks + 1, per_iteration)
+    ]
+
+
 def update_step(spec: Spec, state: dict, _=None):
     """One SAC gradient step on a minibatch sampled from the device buffer."""
     c = spec.config
@@ -605,7 +638,10 @@ def truncate(spec: Spec, state: dict):
     network with only that bottleneck truncated to r_c changes its output by at most
     `retain_tolerance` (relative error over `retain_samples` replay rows: the deterministic action
     for the actor, each Q-network's values for the critics), else keeps r_old. The bottleneck is
-    then re-parameterised W1 = U_r√Σ_r, W2 = √Σ_r V_rᵀ at the chosen rank.
+    then re-parameterised W1 = U_r√Σ_r, W2 = √Σ_r V_rᵀ at the chosen rank. The control
+    (`apply_cuts` false) chooses r_old every time: the same SVD basis, resets and schedule as
+    AdaRL, with the rule's proposal and the candidate's error still measured and reported, so
+    the two arms differ only in the components removed.
     The target critics become a copy of the truncated critics (as Spinning Up builds its target:
     a deep copy), so target and online networks have the same shapes and ranks. Adam states are
     reset and the learning-rate schedule restarts; everything else (replay buffer, α, counters,
@@ -642,7 +678,9 @@ def truncate(spec: Spec, state: dict):
         )
         error = rank.relative_error(trial, reference)
         new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
-        if c.retain_tolerance is not None:  # off: the candidate's factors, exactly as before
+        if not c.apply_cuts:  # the control: the proposal is logged, the old rank kept
+            new = old
+        if c.retain_tolerance is not None or not c.apply_cuts:  # else the candidate's, as before
             w1, w2, m = rank.reparameterise(u, s, vt, new, p["w1"].dtype)
         actor_trunk[i], new_actor_masks[i] = dict(p, w1=w1, w2=w2), m
         report[f"actor_{i}"] = (s, proposed, m.sum().astype(jnp.int32), candidate, error)
@@ -667,7 +705,9 @@ def truncate(spec: Spec, state: dict):
         trial = q_values(spec, trial_layers, trial_masks, obs, act)
         error = jax.vmap(rank.relative_error)(trial, reference)
         new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
-        if c.retain_tolerance is not None:
+        if not c.apply_cuts:
+            new = old
+        if c.retain_tolerance is not None or not c.apply_cuts:
             w1, w2, m = reparam(u, s, vt, new)
         new_critic[i], new_critic_masks[i] = dict(p, w1=w1, w2=w2), m
         for q in range(2):

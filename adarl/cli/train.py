@@ -26,9 +26,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "  adarl train --algo adarl --task walker2d --seeds 0-4 --truncate-every 700000\n"
         "  adarl train --algo sac-fixed-rank --rank 7 --task hopper\n"
         "  adarl train --resume runs/hopper-adarl-20261121-120000\n"
+        "  adarl train --fork runs/hopper-adarl-20261121-120000 --at first-truncation "
+        "--apply-cuts false --out runs/hopper-control\n"
         "Every config field is a flag (--field-name VALUE); tuples take commas (--seeds 0,2,4 or 0-4)."
     )
-    parser.add_argument("--algo", default="adarl", help=", ".join(registry.ALGOS))
+    parser.add_argument("--algo", default=None, help=", ".join(registry.ALGOS) + " (default adarl)")
     parser.add_argument(
         "--preset",
         default=None,
@@ -42,6 +44,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="RUN_DIR",
         help="continue a run from its newest complete checkpoint",
+    )
+    parser.add_argument(
+        "--fork",
+        default=None,
+        metavar="RUN_DIR",
+        help="start a new run (--out) from RUN_DIR's exact state at --at STEP, with the fields "
+        "given as flags changed (docs/run-format.md: forks)",
+    )
+    parser.add_argument(
+        "--at",
+        default=None,
+        metavar="STEP",
+        help="with --fork: the step of a checkpoint of RUN_DIR (its pre-truncation checkpoint "
+        "where it has one), or first-truncation",
     )
     parser.add_argument(
         "--report", action=argparse.BooleanOptionalAction, default=None,
@@ -107,7 +123,7 @@ def build_config(args: argparse.Namespace):
     """(algo, config): defaults <- the algorithm <- per-task defaults <- --preset <- flags."""
     from adarl.algos import registry
 
-    algo = registry.get(args.algo).name
+    algo = registry.get(args.algo or "adarl").name
     return algo, registry.resolve_config(algo, args.preset, flags_from_args(args))
 
 
@@ -118,7 +134,14 @@ def run(args: argparse.Namespace) -> int:
     command = "adarl train " + shlex.join(sys.argv[2:]) if len(sys.argv) > 1 else "adarl train"
     started = time.monotonic()
     progress = not args.no_progress
-    if args.resume:
+    if args.at is not None and not args.fork:
+        raise UsageError("--at is for --fork RUN_DIR")
+    if args.fork:
+        run_dir = fork_run(args, command)
+        algo, config = run_folder.config_from_run(run_dir)
+        with _tracked(args, run_dir, config, command):
+            registry.trainer(algo)(config, run_dir, True, progress, command)
+    elif args.resume:
         given = list(flags_from_args(args))
         if given or args.preset or args.out:
             extra = given[0].replace("_", "-") if given else ("preset" if args.preset else "out")
@@ -144,6 +167,33 @@ def run(args: argparse.Namespace) -> int:
             registry.trainer(algo)(config, run_dir, False, progress, command)
     finish(run_dir, time.monotonic() - started, args.report, args.preset)
     return 0
+
+
+def fork_run(args: argparse.Namespace, command: str) -> Path:
+    """Check and write the fork `--fork RUN_DIR --at STEP [--field value …]` into its folder
+    (--out, or runs/<task>-<algo>-<time>); returns the folder, ready to train as a resumed run."""
+    from adarl.train import fork
+
+    for given, what in (
+        (args.resume, "--resume"),
+        (args.preset, "--preset"),
+        (args.algo, "--algo"),
+    ):
+        if given:
+            raise UsageError(
+                f"--fork takes its settings from RUN_DIR; drop {what} and give only the fields "
+                "that change (--apply-cuts false turns AdaRL into its control)"
+            )
+    if args.at is None:
+        raise UsageError(f"--fork needs --at STEP (a checkpoint step, or {fork.FIRST_TRUNCATION})")
+    planned = fork.prepare(args.fork, args.at, flags_from_args(args))
+    run_dir = (
+        Path(args.out)
+        if args.out
+        else Path("runs") / f"{planned.config.task}-{planned.algo}-{time.strftime('%Y%m%d-%H%M%S')}"
+    )
+    fork.write(planned, run_dir, command)
+    return run_dir
 
 
 class _RaisingParser(argparse.ArgumentParser):

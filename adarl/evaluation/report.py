@@ -18,6 +18,7 @@ Layout of the report folder::
     tables/performance_profiles.csv
     tables/parseval.{md,csv}     every Parseval coefficient's cell (Table 1 keeps the best)
     tables/contrast_FIELD.{md,csv}  with --contrast FIELD: differences along one setting, CIs
+    tables/control_pairs.{md,csv}   AdaRL minus its schedule-matched control, seed by seed
     tables/fixed_rank.{md,csv}   score per fixed rank (bias–variance sweep)
     tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
     tables/suites.{md,csv}       worst-case / average return over robustness suites' grids
@@ -47,6 +48,7 @@ from adarl.algos import registry
 from adarl.errors import UsageError, check_choice
 from adarl.evaluation import behaviour, collect, compare, figures, selection, stats, tables
 from adarl.evaluation.runs import (
+    LAUNCH_KEYS,
     Run,
     config_value,
     differing_fields,
@@ -316,6 +318,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     sections.append(behaviour_section(main, folder))
     sections += statistics_sections(scores, folder, options, notes, score_note)
     sections += [contrast_section(main, finals, c, folder, options) for c in options.contrasts]
+    sections += [s for s in [control_section(main, finals, folder, options)] if s is not None]
     sections.append(training_section(main, folder, colours))
     sections.append(rank_section(runs, folder))
     sections.append(robustness_section(runs, folder, colours, notes))
@@ -750,6 +753,109 @@ def contrast_section(
         "seeds.\n\n" + md + "\n" + _power_text(options) + "\n"
     )
     return Section(f"Contrast: {field}", text, files)
+
+
+# fields in which a control may differ from the AdaRL run it is paired with (a fork may also
+# change how it is logged and checkpointed)
+CONTROL_PAIR_IGNORED = {
+    "algo",
+    "apply_cuts",
+    "keep_checkpoints",
+    "checkpoint_every",
+    "checkpoint_before_truncation",
+    "log_every",
+    "eval_every",
+    "on_divergence",
+}
+
+
+def control_section(
+    runs: list[Run], finals: dict, folder: Path, options: ReportOptions
+) -> Section | None:
+    """AdaRL minus its schedule-matched control (`control_of` in the registry), seed by seed:
+    runs of the two that agree on everything else are paired on their common seeds, and the mean
+    per-seed difference of final nominal return gets a Student-t interval
+    (`stats.paired_difference_ci`). None without control runs."""
+    arms = {r.algo: registry.role(r.algo, "control_of") for r in runs}
+    arms = {control: arm for control, arm in arms.items() if arm}
+    if not arms:
+        return None
+
+    def setting(r: Run) -> tuple:
+        ignored = LAUNCH_KEYS | CONTROL_PAIR_IGNORED
+        flat = flatten_config(r.config).items()
+        return r.task, sorted(
+            (k, repr(v)) for k, v in flat if k.split(".")[0] != "fork" and k not in ignored
+        )
+
+    groups: dict[str, dict[str, list[Run]]] = {}
+    for r in runs:
+        side = "control" if r.algo in arms else "method" if r.algo in arms.values() else None
+        if side:
+            groups.setdefault(repr(setting(r)), {}).setdefault(side, []).append(r)
+    rows, summary, forks = [], [], []
+    pct = int(round(100 * options.confidence))
+    for group in groups.values():
+        by_seed = {
+            side: {int(seed): float(score) for r in group.get(side, [])
+                   for seed, score in finals[r.path][0][["seed", "score"]].itertuples(index=False)}
+            for side in ("method", "control")
+        }  # fmt: skip
+        seeds = sorted(set(by_seed["method"]) & set(by_seed["control"]))
+        if not seeds:
+            continue
+        method, control = group["method"][0], group["control"][0]
+        x = np.array([by_seed["method"][s] for s in seeds])
+        y = np.array([by_seed["control"][s] for s in seeds])
+        rows += [
+            {"task": method.task, "method": method.label, "control": control.label, "seed": s,
+             "method score": a, "control score": b, "difference": a - b}
+            for s, a, b in zip(seeds, x, y)
+        ]  # fmt: skip
+        ci = stats.paired_difference_ci(x, y, options.confidence)
+        sd_diff = float(np.std(x - y, ddof=1)) if len(seeds) > 1 else float("nan")
+        detectable = stats.paired_minimum_detectable_difference(sd_diff, len(seeds), options.power)
+        needed = stats.paired_seeds_needed(options.target_difference, sd_diff, options.power)
+        summary.append(
+            [method.task, method.label, control.label, str(len(seeds)), f"{x.mean():.1f}",
+             f"{y.mean():.1f}", f"{ci.point:.1f} [{ci.low:.1f}, {ci.high:.1f}]",
+             f"{stats.paired_permutation_p_value(x, y):.3g}", f"{detectable:.0f}",
+             f"{needed:.0f}"]
+        )  # fmt: skip
+        forks += [
+            f"- {r.path}: forked from {r.config['fork'].get('from')} at step "
+            f"{r.config['fork'].get('step')}"
+            for r in group["control"]
+            if isinstance(r.config.get("fork"), dict)
+        ]
+    title = "AdaRL against its control"
+    if not summary:
+        return Section(title, "No control run has an AdaRL run with the same settings and seeds.\n")
+    files = [_write(folder, "tables/control_pairs.csv", _csv(pd.DataFrame(rows)))]
+    md = tables.markdown_table(
+        ["task", "method", "control", "paired seeds", "mean (method)", "mean (control)",
+         f"method − control [{pct}% t CI]", "sign-flip p",
+         f"detectable at {options.power:.0%} power (paired)",
+         f"pairs for {options.target_difference:g}"],
+        summary,
+    )  # fmt: skip
+    files.append(_write(folder, "tables/control_pairs.md", md))
+    text = (
+        "The score (as Table 1) of AdaRL minus its schedule-matched control (the same "
+        "truncations, resets and warm-ups, no component removed), seed by seed: a control seed is "
+        f"paired with the AdaRL seed of the same number; {pct}% Student-t interval of the mean "
+        "per-seed difference, the exact sign-flip permutation p-value, the smallest difference "
+        "the paired t-test detects at that power with these pairs and their spread, and the pairs "
+        "a difference of the target size would need. Per-seed rows: tables/control_pairs.csv."
+        "\n\n" + md
+    )
+    if forks:
+        text = (
+            text.rstrip("\n")
+            + "\n\nForked controls (they share AdaRL's training up to that step):\n"
+        )
+        text += "\n".join(forks) + "\n"
+    return Section(title, text, files)
 
 
 def _seed_counts(table: tables.ScoreTable) -> str:

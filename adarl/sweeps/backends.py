@@ -67,6 +67,11 @@ def run_job(job: dict) -> dict:
             env={**os.environ, **job["env"]},
             start_new_session=True,
         )  # Ctrl-C reaches the sweep, not units
+        # a new session is a new scheduling group at nice 0: give the unit the sweep's own, so a
+        # sweep started at the lowest CPU share (shared/tools/background) keeps its units there
+        nice = autogroup_nice("self")
+        if nice is not None:
+            set_autogroup_nice(proc.pid, nice)
         with _children_lock:
             _children.add(proc)
         try:
@@ -75,6 +80,26 @@ def run_job(job: dict) -> dict:
             with _children_lock:
                 _children.discard(proc)
     return {"returncode": returncode, "host": socket.gethostname()}
+
+
+def autogroup_nice(pid: int | str) -> int | None:
+    """The nice value of `pid`'s scheduling group (Linux autogroup: one per session, and the
+    scheduler shares the CPU between groups by this value, not by the processes' own nice);
+    None where the kernel has no autogroups."""
+    try:
+        text = Path(f"/proc/{pid}/autogroup").read_text()
+    except OSError:
+        return None
+    _, _, value = text.strip().rpartition(" ")
+    return int(value) if value.lstrip("-").isdigit() else None
+
+
+def set_autogroup_nice(pid: int, nice: int) -> None:
+    """Set `pid`'s scheduling-group nice (best effort: nothing where it cannot be set)."""
+    try:
+        Path(f"/proc/{pid}/autogroup").write_text(str(nice))
+    except OSError:
+        pass
 
 
 def stop_children(grace_s: float = 10.0) -> None:

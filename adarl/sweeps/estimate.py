@@ -4,8 +4,8 @@ and with `--dry-run`.
 A unit's time is a start-up plus its remaining environment steps, summed over its seeds, divided
 by a measured rate in seed-steps per second of wall time (what a sweep unit pinned to its
 `cpus_per_unit` cores achieved, evaluations, checkpoints, truncations and compilation included).
-The sweep's time is that of the local pool's schedule: units in file order, each to the first
-free slot. Rates come, most specific first, from the unit's own run folder (a resumed sweep),
+The sweep's time is that of the runner's schedule: units longest first, each to the first free
+slot, a fork unit once its parent has reached the fork point (its share of the parent's time). Rates come, most specific first, from the unit's own run folder (a resumed sweep),
 from other runs of the same algorithm on the same task in the sweep folder, and from the sweep
 units measured on this 2-core machine and shipped in `throughput.csv` (the committed
 experiments, docs/experiments/); a unit with no measurement of its algorithm on its task borrows
@@ -39,6 +39,8 @@ COLUMNS = ("algo", "task", "label", "seeds", "steps", "train_s", "source")
 # the first interval, so inside the rate.
 STARTUP_S = 10.0
 BORROWED = ("algo", "task", "any")  # rates measured on another task or algorithm
+# algorithms that train the same networks at the same cost as another (measured) one
+SAME_COST = {"adarl-control": "adarl"}
 
 
 @dataclass(frozen=True)
@@ -107,11 +109,14 @@ def pick_rate(
     def same(key):
         return lambda m: key(m) == key(unit)
 
+    def cost(x) -> str:
+        return SAME_COST.get(x.algo, x.algo)
+
     levels = [("own run", [own], lambda m: True)]
     for level, key in (
         ("label and task", same(lambda x: (x.label, x.task))),
-        ("algo and task", same(lambda x: (x.algo, x.task))),
-        ("algo", same(lambda x: x.algo)),
+        ("algo and task", same(lambda x: (cost(x), x.task))),
+        ("algo", same(cost)),
         ("task", same(lambda x: x.task)),
         ("any", lambda m: True),
     ):
@@ -140,6 +145,32 @@ def schedule_seconds(durations: list[float], slots: int) -> float:
     return max(free)
 
 
+def fork_schedule_seconds(jobs: list[tuple[str, float, str | None, float]], slots: int) -> float:
+    """Wall time of the runner's schedule of `jobs` (id, duration, parent id or None, seconds
+    after the parent's start at which it may start), listed in submission order: each free
+    slot takes the next job in the queue, and a fork joins the end of the queue once its parent
+    has run that long (at once if its parent is not in `jobs`)."""
+    ids = {job[0] for job in jobs}
+    queue = [job for job in jobs if job[2] not in ids]
+    released: list[tuple[float, int, tuple]] = []  # (time, order, job)
+    free = [0.0] * max(1, slots)
+    end = 0.0
+    while queue or released:
+        now = heapq.heappop(free)
+        if not queue and released[0][0] > now:
+            now = released[0][0]
+        while released and released[0][0] <= now:
+            queue.append(heapq.heappop(released)[2])
+        job = queue.pop(0)
+        finish = now + job[1]
+        end = max(end, finish)
+        heapq.heappush(free, finish)
+        for i, child in enumerate(jobs):
+            if child[2] == job[0]:
+                heapq.heappush(released, (now + child[3], i, child))
+    return end
+
+
 def estimate(
     sweep: Sweep,
     remaining: dict[str, int],
@@ -147,19 +178,22 @@ def estimate(
     shipped: list[Measurement],
     here: dict[str, Measurement] | None = None,
     cores: int | None = None,
+    longest_first: bool = True,
 ) -> Estimate:
     """The sweep's wall time on `slots` slots with `remaining[unit.id]` steps per seed left per
-    unit (0: done; default: its budget), from the `shipped` measurements and those of the runs
-    already in the sweep folder (`here`, by unit id). Units that would share cores
+    unit (0: done; default: its budget, from its fork point for a fork), from the `shipped`
+    measurements and those of the runs already in the sweep folder (`here`, by unit id). Units
+    that would share cores
     (slots × cpus_per_unit > `cores`) run proportionally slower than measured (the measurements
-    had a core per unit)."""
+    had a core per unit). The schedule is the runner's, longest first, or with `longest_first`
+    false the file order (how sweeps ran before the runner ordered them)."""
     here = here or {}
     share = 1.0
     if cores and slots * sweep.cpus_per_unit > cores:
         share = cores / (slots * sweep.cpus_per_unit)
     units, sources = [], set()
     for unit in sweep.units:
-        steps = remaining.get(unit.id, unit.total_steps)
+        steps = remaining.get(unit.id, unit.total_steps - unit.fork_step)
         if steps <= 0:
             units.append(UnitEstimate(unit.id, 0.0, "own run"))
             continue
@@ -169,8 +203,22 @@ def estimate(
         units.append(UnitEstimate(unit.id, seconds, matched))
         sources.update(used)
     todo = [u.seconds for u in units if u.seconds > 0]
+    seconds = {u.unit_id: u.seconds for u in units}
+    by_id = {u.id: u for u in sweep.units}
+    jobs = []
+    order = sorted(sweep.units, key=lambda u: -seconds[u.id]) if longest_first else sweep.units
+    for unit in order:
+        if seconds[unit.id] <= 0:
+            continue
+        parent, after = unit.fork_of, 0.0
+        if parent is not None and seconds.get(parent, 0) > 0:  # the parent still has to get there
+            total = by_id[parent].total_steps
+            left = remaining.get(parent, total)
+            part = (unit.fork_step - (total - left)) / left if left > 0 else 0.0
+            after = STARTUP_S + (seconds[parent] - STARTUP_S) * min(1.0, max(0.0, part))
+        jobs.append((unit.id, seconds[unit.id], parent, after))
     return Estimate(
-        seconds=schedule_seconds(todo, slots),
+        seconds=fork_schedule_seconds(jobs, slots),
         unit_seconds=sum(todo),
         slots=slots,
         units=tuple(units),
@@ -259,8 +307,8 @@ def remaining_steps(out: Path, unit: Unit) -> int:
     if (run_dir / "DONE").exists():
         return 0
     found = checkpoint_dirs(run_dir)
-    done = int(found[-1].name.split("_")[1]) if found else 0
-    return max(0, unit.total_steps - done)
+    done = int(found[-1].name.split("_")[1]) if found else unit.fork_step  # a fork: the prefix
+    return max(0, unit.total_steps - done)  # is its parent's
 
 
 def for_sweep(sweep: Sweep, out: Path, slots: int, cores: int | None = None) -> Estimate:
@@ -274,6 +322,12 @@ def for_sweep(sweep: Sweep, out: Path, slots: int, cores: int | None = None) -> 
             here[unit.id] = found
     remaining = {u.id: remaining_steps(out, u) for u in sweep.units}
     return estimate(sweep, remaining, slots, read_measurements(), here, cores)
+
+
+def unit_seconds(sweep: Sweep, out: Path) -> dict[str, float]:
+    """Each unit's estimated time left (seconds on one slot), by unit id; what the runner orders
+    the units by. A ValueError if no measurement exists."""
+    return {u.unit_id: u.seconds for u in for_sweep(sweep, out, 1).units}
 
 
 def measurements_of(sweep_dir: Path, source: str) -> list[Measurement]:

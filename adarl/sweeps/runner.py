@@ -13,6 +13,10 @@ The sweep folder:
 Re-running the same command is how a sweep resumes: units whose run folder has DONE are skipped,
 the others are queued again and each attempt resumes from its run's newest checkpoint
 (adarl.sweeps.worker decides that, under the unit's lock).
+
+Units start longest first (by `adarl.sweeps.estimate`), so that a long unit never starts last
+and runs alone at the end. A fork unit (`fork: {from, at}`) waits until its parent unit has
+written the checkpoint it starts from, and fails if its parent fails or finishes without it.
 """
 
 from __future__ import annotations
@@ -80,8 +84,9 @@ def plan_text(sweep: Sweep, out: Path, where: str) -> str:
             f"  {unit.id:<{width}}  {unit_state(out, unit):<22} "
             f"adarl train {' '.join(unit.train_args)}"
         )
-    steps = sum(u.total_steps * len(u.seeds) for u in sweep.units)
-    lines.append(f"total: {steps:,} environment steps over all seeds")
+    steps = sum((u.total_steps - u.fork_step) * len(u.seeds) for u in sweep.units)
+    forks = " (a fork's from its fork point on)" if any(u.fork_of for u in sweep.units) else ""
+    lines.append(f"total: {steps:,} environment steps over all seeds{forks}")
     return "\n".join(lines)
 
 
@@ -143,6 +148,7 @@ class SweepRun:
         self.tries: Counter[str] = Counter()
         self.start_step: dict[str, int] = {}  # step each running attempt started from
         self.skipped = 0
+        self.waiting: list[Unit] = []  # fork units whose parent has not reached the fork point
 
     # ------------------------------------------------------------------ loop
     def run(self) -> int:
@@ -159,20 +165,30 @@ class SweepRun:
                 self.line(unit, "done", "(finished before; skipped)")
             else:
                 self.manifest.update(unit.id, status="queued", error=None)
+                if state == "start" and unit.fork_of:
+                    state = f"start: a fork of {unit.fork_of} at step {unit.fork_step:,}"
                 self.line(unit, "queued", f"({state})")
-        for unit in self.sweep.units:
+        for unit in longest_first(self.sweep, self.out):
             if self.manifest.unit(unit.id)["status"] == "queued":
-                self.submit(unit)
+                if unit.fork_of and not fork_ready(self.out, unit):
+                    self.waiting.append(unit)
+                else:
+                    self.submit(unit)
         self.manifest.save()
         last_progress = time.monotonic()
         try:
-            while self.in_flight:
-                finished, _ = cf.wait(
-                    list(self.in_flight), timeout=POLL_S, return_when=cf.FIRST_COMPLETED
-                )
+            while self.in_flight or self.waiting:
+                if self.in_flight:
+                    finished, _ = cf.wait(
+                        list(self.in_flight), timeout=POLL_S, return_when=cf.FIRST_COMPLETED
+                    )
+                else:
+                    finished = []
+                    time.sleep(POLL_S)
                 self.notice_started()
                 for future in finished:
                     self.finish(future)
+                self.release_forks()
                 if time.monotonic() - last_progress >= self.options.progress_every:
                     self.progress_lines()
                     last_progress = time.monotonic()
@@ -195,6 +211,9 @@ class SweepRun:
         self.in_flight[self.backend.submit(self.job(unit, attempt))] = (unit, attempt)
 
     def job(self, unit: Unit, attempt: int) -> dict:
+        train_args = list(unit.train_args)
+        if unit.fork_of:  # the parent's run folder, where this sweep keeps it
+            train_args[train_args.index("--fork") + 1] = str(self.out / unit.fork_of)
         return {
             "worker_args": [
                 "--run-dir",
@@ -207,7 +226,7 @@ class SweepRun:
                 str(attempt),
                 *(f"--train-extra={flag}" for flag in self.options.train_extra),
                 "--",
-                *unit.train_args,
+                *train_args,
             ],
             "log": str(self.out / "logs" / f"{unit.flat_id}.log"),
             "env": self.env,
@@ -292,6 +311,26 @@ class SweepRun:
                 f"{self.out / 'logs' / (unit.flat_id + '.log')}",
             )
 
+    def release_forks(self) -> None:
+        """Submit the waiting forks whose parent has written their fork point; fail those whose
+        parent failed or ended without it (they wait again when the sweep is re-run)."""
+        running = {unit.id for unit, _ in self.in_flight.values()}
+        for unit in list(self.waiting):
+            parent = self.manifest.unit(unit.fork_of)
+            if fork_ready(self.out, unit):
+                self.waiting.remove(unit)
+                self.line(unit, "queued", f"({unit.fork_of} reached step {unit.fork_step:,})")
+                self.submit(unit)
+            elif unit.fork_of not in running and parent["status"] in ("failed", "done"):
+                self.waiting.remove(unit)
+                why = (
+                    f"its parent {unit.fork_of} failed"
+                    if parent["status"] == "failed"
+                    else f"its parent {unit.fork_of} has no checkpoint at step {unit.fork_step:,}"
+                )
+                self.manifest.update(unit.id, status="failed", error=why, finished=time.time())
+                self.line(unit, "failed", why)
+
     def progress_lines(self) -> None:
         for unit, _ in self.in_flight.values():
             if self.manifest.unit(unit.id)["status"] != "running":
@@ -343,6 +382,25 @@ class SweepRun:
 
 
 # ----------------------------------------------------------------------------- helpers
+def longest_first(sweep: Sweep, out: Path) -> list[Unit]:
+    """The units, those with the largest estimated time left first (file order among equals,
+    and file order throughout when no measurement gives an estimate)."""
+    from adarl.sweeps import estimate
+
+    try:
+        seconds = estimate.unit_seconds(sweep, out)
+    except (ValueError, OSError):  # no throughput measurement to go by
+        return list(sweep.units)
+    return sorted(sweep.units, key=lambda u: -seconds[u.id])
+
+
+def fork_ready(out: Path, unit: Unit) -> bool:
+    """Has the parent of fork unit `unit` written the checkpoint the fork starts from?"""
+    from adarl.train import fork
+
+    return unit.fork_step in fork.fork_points(out / unit.fork_of)
+
+
 def last_train_row(path: Path) -> tuple[int, float] | None:
     """(step, steps_per_s) of the last complete row of a run's train.csv, if it has one."""
     try:

@@ -8,6 +8,7 @@ one-line `UsageError`, before anything starts. The format is documented in docs/
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +35,8 @@ TOP_KEYS = (
 )
 REQUIRED_KEYS = ("tasks", "algos", "seeds", "budget")
 EVAL_KEYS = ("eval_every", "eval_episodes", "eval_dynamics")
-ENTRY_KEYS = ("algo", "name", "preset", "grid", "seeds")
+ENTRY_KEYS = ("algo", "name", "preset", "grid", "seeds", "fork")
+FORK_KEYS = ("from", "at")  # an entry's `fork`: the label of the entry it forks, and the step
 # set by the spec's own keys (tasks, seeds, budget), never by overrides
 RESERVED_FIELDS = {"algo": "algos", "task": "tasks", "seeds": "seeds", "total_steps": "budget"}
 
@@ -51,6 +53,8 @@ class Unit:
     total_steps: int
     train_args: tuple[str, ...]
     config: object = field(compare=False, repr=False)  # the SACConfig / RNACConfig it trains
+    fork_of: str | None = None  # a fork: the id of the unit it starts from (docs/sweeps.md)
+    fork_step: int = 0  # … at this step of that unit (its pre-truncation checkpoint)
 
     @property
     def flat_id(self) -> str:
@@ -169,7 +173,59 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
                         envs,
                     )
                 )
+    units = _forks(units, entries, where)
     return Sweep(name=name, source=source, units=tuple(units), cpus_per_unit=int(cpus))
+
+
+def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:
+    """Turn the units of entries with a `fork` into forks of their parents' units (same task
+    and seeds) at the parent's checkpoint before the truncation `at` names: their train args
+    become `--fork <parent unit> --at STEP` and the fields that change."""
+    from adarl.train import fork
+
+    by_label = {e["label"]: e for e in entries}
+    out = []
+    for unit in units:
+        entry = by_label[unit.label]
+        if entry["fork"] is None:
+            out.append(unit)
+            continue
+        here = f"{where}: {unit.id}"
+        parent_label, at = entry["fork"]["from"], entry["fork"]["at"]
+        parent_entry = by_label.get(parent_label)
+        if parent_entry is None or parent_entry["fork"] is not None:
+            plain = [e["label"] for e in entries if e["fork"] is None]
+            raise UsageError(
+                f"{here}: fork from {parent_label!r}: no such entry without a fork; "
+                f"entries: {', '.join(plain)}"
+            )
+        parent_id = f"{unit.task}/{parent_label}/seeds-{_seed_text(unit.seeds)}"
+        parent = next((u for u in units if u.id == parent_id), None)
+        if parent is None:
+            raise UsageError(f"{here}: its parent {parent_id} is not in the sweep (same seeds?)")
+        try:
+            changed = fork.check_forkable(parent.config, unit.config)
+            step = fork.fork_step(parent.config, at)
+        except UsageError as exc:
+            raise UsageError(f"{here}: {exc}") from None
+        from adarl.algos import sac
+
+        if step not in sac.truncation_steps(parent.config):
+            raise UsageError(
+                f"{here}: fork at step {step}: {parent_id} truncates at "
+                f"{', '.join(map(str, sac.truncation_steps(parent.config))) or 'no step'}; "
+                f"a sweep forks at a truncation ({fork.FIRST_TRUNCATION} or one of those steps)"
+            )
+        if not parent.config.checkpoint_before_truncation:
+            raise UsageError(f"{here}: {parent_id} keeps no checkpoint before its truncations")
+        args = ["--fork", parent_id, "--at", str(step)]
+        for name in changed:
+            if name != "algo":  # follows apply_cuts
+                args += [f"--{name.replace('_', '-')}", _flag_text(getattr(unit.config, name))]
+        out.append(
+            dataclasses.replace(unit, train_args=tuple(args), fork_of=parent_id, fork_step=step)
+        )
+    return out
 
 
 def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
@@ -416,6 +472,14 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
         points = [{**p, key: v} for p in points for v in values]
     if name is not None and len(points) > 1:
         raise UsageError(f"{here}: a `name` cannot label the {len(points)} points of a grid")
+    fork = item.get("fork")
+    if fork is not None:
+        if not isinstance(fork, dict) or set(fork) != set(FORK_KEYS) or len(points) > 1:
+            raise UsageError(
+                f"{here}: fork must be a mapping {{from: <entry label>, at: first-truncation or "
+                f"a step}} on an entry without a grid, got {fork!r}"
+            )
+        fork = {"from": str(fork["from"]), "at": fork["at"]}
     out = []
     for point in points:
         label = (
@@ -430,6 +494,7 @@ def _algo_entry(item, where: str, fields: dict[str, set[str]], algos) -> list[di
                 "label": label,
                 "fields": {**settings, **point},
                 "seeds": seeds,
+                "fork": fork,
             }
         )
     return out

@@ -35,6 +35,8 @@ from adarl.files import (  # noqa: F401  (re-exported: the run folder's writers)
 
 RUN_FORMAT_VERSION = 1
 CHECKPOINT_DIR = "checkpoints"
+# checkpoints taken just before a truncation (fork points): kept, never rotated or resumed from
+PRE_TRUNCATION_DIR = "checkpoints/pre_truncation"
 LOCK_FILE = ".lock"  # holds the PID of the process writing the run (flock, see RunLock)
 DAMAGED_PREFIX = "damaged_"  # a checkpoint that failed to load is renamed damaged_step_<n>
 
@@ -182,12 +184,12 @@ class RunLock:
         self.release()
 
 
-def write_environment(run_dir: str | os.PathLike) -> None:
-    """Record what produced a new run (versions, commit, CPU, XLA flags) in environment.json;
-    see adarl.train.provenance."""
+def write_environment(run_dir: str | os.PathLike, extra: dict | None = None) -> None:
+    """Record what produced a new run (versions, commit, CPU, XLA flags; `extra` added) in
+    environment.json; see adarl.train.provenance."""
     from adarl.train.provenance import write_environment
 
-    write_environment(run_dir)
+    write_environment(run_dir, extra)
 
 
 # ----------------------------------------------------------------------------- CSV logs
@@ -328,9 +330,10 @@ def unflatten_tree(template, arrays: dict[str, np.ndarray], prefix: str = ""):
 
 
 # ----------------------------------------------------------------------------- checkpoints
-def checkpoint_dirs(run_dir: str | os.PathLike) -> list[Path]:
-    """Complete checkpoints of a run, oldest first (a complete one has meta.json)."""
-    root = Path(run_dir) / CHECKPOINT_DIR
+def checkpoint_dirs(run_dir: str | os.PathLike, folder: str = CHECKPOINT_DIR) -> list[Path]:
+    """Complete checkpoints of a run, oldest first (a complete one has meta.json); `folder`
+    PRE_TRUNCATION_DIR: the pre-truncation ones."""
+    root = Path(run_dir) / folder
     if not root.is_dir():
         return []
     found = [p for p in root.iterdir() if p.is_dir() and p.name.startswith("step_")]
@@ -345,12 +348,14 @@ def save_checkpoint(
     meta: dict,
     keep: int = 2,
     files: dict[str, bytes] | None = None,
+    folder: str = CHECKPOINT_DIR,
 ) -> Path:
-    """Write `checkpoints/step_<step>/` atomically: a temp folder holding arrays.npz, the extra
-    `files` (name -> bytes, e.g. policy files) and meta.json (written last, with the sha256 of
-    arrays.npz) is renamed into place, then older checkpoints beyond `keep` go. An OSError
-    becomes a one-line `RunFailed`; the checkpoints already there are left as they were."""
-    root = Path(run_dir) / CHECKPOINT_DIR
+    """Write `<folder>/step_<step>/` (default `checkpoints/`) atomically: a temp folder holding
+    arrays.npz, the extra `files` (name -> bytes, e.g. policy files) and meta.json (written last,
+    with the sha256 of arrays.npz) is renamed into place, then older checkpoints of that folder
+    beyond `keep` go (0: none). An OSError becomes a one-line `RunFailed`; the checkpoints
+    already there are left as they were."""
+    root = Path(run_dir) / folder
     final = root / f"step_{step:012d}"
     with fs_errors(final):
         root.mkdir(parents=True, exist_ok=True)
@@ -384,7 +389,7 @@ def save_checkpoint(
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
-    for old in checkpoint_dirs(run_dir)[:-keep] if keep > 0 else []:
+    for old in checkpoint_dirs(run_dir, folder)[:-keep] if keep > 0 else []:
         shutil.rmtree(old, ignore_errors=True)
     for stale in root.glob(".tmp_step_*"):  # left by a killed writer
         shutil.rmtree(stale, ignore_errors=True)
@@ -473,6 +478,7 @@ def load_latest_intact(run_dir: str | os.PathLike, warn=None):
 
 #: config fields a run may change between its checkpoint and a resume (the others are the run)
 RESUMABLE_EDITS = (
+    "checkpoint_before_truncation",
     "total_steps",
     "on_divergence",
     "keep_checkpoints",

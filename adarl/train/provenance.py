@@ -46,11 +46,12 @@ def environment_record() -> dict:
     }
 
 
-def write_environment(run_dir: str | os.PathLike) -> None:
-    """Write `environment_record()` to RUN_DIR/environment.json (atomically)."""
+def write_environment(run_dir: str | os.PathLike, extra: dict | None = None) -> None:
+    """Write `environment_record()` (plus `extra`, e.g. a fork's record) to
+    RUN_DIR/environment.json (atomically)."""
     from adarl.train.io import atomic_write_json
 
-    atomic_write_json(Path(run_dir) / FILE, environment_record())
+    atomic_write_json(Path(run_dir) / FILE, {**environment_record(), **(extra or {})})
 
 
 def read_environment(run_dir: str | os.PathLike) -> dict | None:

@@ -27,6 +27,7 @@ from adarl.errors import UsageError
 from adarl.train import io
 from adarl.train.io import (  # noqa: F401  (the run-folder API, re-exported)
     CHECKPOINT_DIR,
+    PRE_TRUNCATION_DIR,
     RUN_FORMAT_VERSION,
     check_resume_config,
     checkpoint_dirs,
@@ -91,11 +92,14 @@ def config_yaml(config, extra: dict | None = None) -> str:
     return yaml.safe_dump(values, sort_keys=False)
 
 
-def write_config(run_dir: Path, config, algo: str, command: str) -> None:
-    """config.yaml of a new run: `algo`, every config field, the format and adarl versions and
-    the command that started it."""
+def write_config(run_dir: Path, config, algo: str, command: str, fork: dict | None = None) -> None:
+    """config.yaml of a new run: `algo`, every config field, the format and adarl versions, the
+    command that started it and, for a fork, where it came from (`fork`, docs/run-format.md)."""
     record = {"format_version": RUN_FORMAT_VERSION, "adarl_version": __version__}
-    text = config_yaml(config, {**record, "command": command or " ".join(sys.argv)})
+    record["command"] = command or " ".join(sys.argv)
+    if fork is not None:
+        record["fork"] = fork
+    text = config_yaml(config, record)
     if not hasattr(config, "algo"):
         text = yaml.safe_dump({"algo": algo}, sort_keys=False) + text
     io.atomic_write_text(Path(run_dir) / CONFIG_FILE, text)

@@ -57,6 +57,10 @@ BASE_COLUMNS = [
     "lr",
 ]
 BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
+# meta.json `phase` of a checkpoint taken after a chunk's updates and before the truncation due
+# then: restoring it continues with that truncation (the end-of-chunk work), not a new chunk
+PRE_TRUNCATION = "pre_truncation"
+PENDING = "pending"  # arrays.npz prefix of the update metrics not yet averaged into train.csv
 
 
 @dataclasses.dataclass
@@ -166,6 +170,8 @@ class Run:
         self.watch = io.DivergenceWatch(run_dir, config.on_divergence)
 
     # ------------------------------------------------------------------ state
+    mid_chunk = False  # restored from a pre-truncation checkpoint: the end-of-chunk work is due
+
     def fresh(self) -> None:
         states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
         self.set_lanes(jax.tree_util.tree_map(lambda *a: np.stack(a), *states))
@@ -246,6 +252,10 @@ class Run:
         arrays["host/obs"] = self.obs
         arrays["host/ep_return"] = self.ep_return
         arrays["host/ep_length"] = self.ep_length
+        for k, lane in enumerate(self.lanes):  # only between train.csv rows (no key otherwise)
+            infos = jax.device_get(lane.infos)
+            for name in infos[0] if infos else ():
+                arrays[f"{PENDING}/{k}/{name}"] = np.stack([info[name] for info in infos])
         return arrays
 
     def restore(self, arrays: dict, meta: dict) -> None:
@@ -273,6 +283,13 @@ class Run:
             buffers[k] = saved
         buffers["ptr"], buffers["size"] = arrays["buffer/ptr"], arrays["buffer/size"]
         self.set_lanes(state, buffers, meta.get("lane_bottleneck_widths"))
+        for k, lane in enumerate(self.lanes):  # metrics of updates since the last train.csv row
+            names = [key.split("/")[-1] for key in arrays if key.startswith(f"{PENDING}/{k}/")]
+            n = arrays[f"{PENDING}/{k}/{names[0]}"].shape[0] if names else 0
+            lane.infos = [
+                {name: arrays[f"{PENDING}/{k}/{name}"][j] for name in names} for j in range(n)
+            ]
+        self.mid_chunk = meta.get("phase") == PRE_TRUNCATION
         self.n_updates = int(state["n_updates"][0])
         self.iteration_start = int(state["iteration_start"][0])
         self.obs = arrays["host/obs"].astype(np.float32)
@@ -410,6 +427,8 @@ class Run:
         c = self.config
         if not c.adapt_rank or self.n_updates - self.iteration_start < c.truncate_every:
             return
+        if c.checkpoint_before_truncation and not self.mid_chunk:
+            self.save_before_truncation()
         old = self.gather(_ranks)
         reports = []
         full = _layer_widths(self.spec)
@@ -442,7 +461,7 @@ class Run:
                         "candidate_rank": int(candidate[i]),
                         "error": float(error[i]),
                         "decision": truncation_decision(
-                            int(old[name][i]), int(candidate[i]), int(new[i])
+                            int(old[name][i]), int(candidate[i]), int(new[i]), c.apply_cuts
                         ),
                     }
                 )
@@ -541,7 +560,16 @@ class Run:
                 self.tb.write(self.step, {rf.tb_eval_return(label, self.seeds[i]): mean_return})
                 self.last_eval[self.seeds[i]] = mean_return
 
-    def save(self) -> None:
+    def save_before_truncation(self) -> None:
+        """Keep the state just before the truncation that is due (a fork point, docs/run-format.md);
+        skipped when something is already non-finite, as a regular checkpoint would refuse it."""
+        finite = self.gather(lambda lane: _finite_parameters(lane.state))
+        if all(np.all(ok) for ok in finite.values()) and not self.watch.found:
+            self.save(phase=PRE_TRUNCATION)
+
+    def save(self, phase: str | None = None) -> None:
+        """A checkpoint of everything; `phase` PRE_TRUNCATION: one kept in
+        checkpoints/pre_truncation/ (never rotated), taken before the end-of-chunk work."""
         from adarl.policy import to_bytes
 
         arrays = self.checkpoint_arrays()
@@ -554,6 +582,8 @@ class Run:
             {name: log.offset() for name, log in self.logs.items()},
         )
         meta["bottleneck_widths"] = sac.bottleneck_widths(self.spec)
+        if phase is not None:
+            meta["phase"] = phase
         if not self.shared_widths:
             meta["lane_bottleneck_widths"] = [
                 sac.bottleneck_widths(lane.spec) for lane in self.lanes
@@ -567,8 +597,9 @@ class Run:
             self.step,
             arrays,
             meta,
-            keep=self.config.keep_checkpoints,
+            keep=0 if phase == PRE_TRUNCATION else self.config.keep_checkpoints,
             files=policies,
+            folder=rf.PRE_TRUNCATION_DIR if phase == PRE_TRUNCATION else rf.CHECKPOINT_DIR,
         )
 
     def check_divergence(self) -> None:
@@ -583,41 +614,57 @@ class Run:
             jax.block_until_ready(lane.state)
 
     # ------------------------------------------------------------------ the loop
+    def end_chunk_work(self) -> None:
+        """What follows a chunk's updates: the truncation that is due, then the train.csv row,
+        the evaluation and the checkpoint that fall on this step. A run restored from a
+        pre-truncation checkpoint starts here."""
+        c = self.config
+        self.maybe_truncate()
+        self.mid_chunk = False
+        t = self.step  # a chunk boundary: every `*_every` is a multiple of update_every
+        if t % c.log_every == 0 or t == c.total_steps:
+            now = time.perf_counter()
+            t_log, s_log = self.clock
+            rate = (t - s_log) / max(now - t_log, 1e-9)
+            self.write_train_log(rate)
+            self.check_divergence()
+            self.clock = now, t
+        if t % c.eval_every == 0 or t == c.total_steps:
+            self.evaluate()
+        if t % c.checkpoint_every == 0 or t == c.total_steps:
+            self.check_divergence()  # never checkpoint non-finite parameters
+            self.save()
+
     def loop(self) -> None:
         c = self.config
         bar = _progress(c.total_steps, self.step, self.progress)
-        t_log, s_log = time.perf_counter(), self.step
+        self.clock = time.perf_counter(), self.step  # (time, step) of the last train.csv row
+        if self.mid_chunk:
+            self.end_chunk_work()
         while self.step < c.total_steps:
             self.train_chunk()
-            self.maybe_truncate()
-            t = self.step  # a chunk boundary: every `*_every` is a multiple of update_every
-            if t % c.log_every == 0 or t == c.total_steps:
-                now = time.perf_counter()
-                rate = (t - s_log) / max(now - t_log, 1e-9)
-                self.write_train_log(rate)
-                self.check_divergence()
-                t_log, s_log = now, t
-            if t % c.eval_every == 0 or t == c.total_steps:
-                self.evaluate()
-            if t % c.checkpoint_every == 0 or t == c.total_steps:
-                self.check_divergence()  # never checkpoint non-finite parameters
-                self.save()
+            self.end_chunk_work()
             if bar is not None:
                 recent = self.recent_returns[-10 * self.n :]
                 bar.set_postfix_str(
                     f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False
                 )
-                bar.update(t - bar.n)
+                bar.update(self.step - bar.n)
         if bar is not None:
             bar.close()
         rf.finish(self.run_dir, self.step)
 
 
-def truncation_decision(old_rank: int, candidate_rank: int, new_rank: int) -> str:
+def truncation_decision(
+    old_rank: int, candidate_rank: int, new_rank: int, apply_cuts: bool = True
+) -> str:
     """`accepted`: the rule's cut was made; `retained`: the retain clause kept the old rank;
+    `control`: the schedule-matched control kept it (the cut was proposed, never applied);
     `unchanged`: the rule proposed no cut."""
     if candidate_rank >= old_rank:
         return "unchanged"
+    if not apply_cuts:
+        return "control"
     return "accepted" if new_rank == candidate_rank else "retained"
 
 
@@ -707,6 +754,10 @@ def _train(config, run_dir: Path, resume: bool, progress: bool, command: str, lo
         if meta is not None:
             run.restore(arrays, meta)
             run.open_logs(rf.csv_offsets(meta))
+        elif rf.load_config(run_dir).get("fork"):  # its first checkpoint is written last
+            raise UsageError(
+                f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
+            )
         else:  # killed before its first checkpoint: start again, keeping nothing half-done
             run.fresh()
             run.open_logs(

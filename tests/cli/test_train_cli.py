@@ -30,7 +30,7 @@ from adarl.cli.train import add_arguments, build_config
         (["--algo", "sac-parseval", "--parseval-coef", "0"], "must be > 0 for sac-parseval, got 0"),
         (["--algo", "sac-sparse", "--sparse-width", "-1"], "sparse-width must be"),
         (["--hidden", "64,0"], "hidden sizes must be"),
-        (["--lanes", "0"], "lanes must be > 0, got 0"),
+        (["--lanes", "-1"], "lanes must be ≥ 0, got -1"),
         (["--eval-every", "1001"], "eval-every must be a multiple of update-every (50), got 1001"),
         (
             ["--retain-tolerance", "0"],
@@ -250,5 +250,58 @@ def test_every_config_field_has_its_meaning_in_help(capsys):
     )
     assert "--clip-eps FLOAT PPO's clip range ε; default: 0.2" in out
     # a comment block above a field is its help; a `# --- section` heading is not
-    assert "--lanes INT the seeds form this many lanes" in out
+    assert "--lanes INT 0: every seed is its own lane" in out
     assert "--hidden TUPLE hidden layer widths of actor and critics; default: 64,64" in out
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--at", "100"], "--at is for --fork RUN_DIR"),
+        (["--fork", "{sac}"], "--fork needs --at STEP (a checkpoint step, or first-truncation)"),
+        (["--fork", "{sac}", "--at", "5", "--resume", "x"], "drop --resume"),
+        (["--fork", "{sac}", "--at", "5", "--preset", "smoke"], "drop --preset"),
+        (["--fork", "{sac}", "--at", "5", "--algo", "adarl"], "drop --algo"),
+        (["--fork", "{sac}", "--at", "5"], "has no checkpoint at step 5; fork points: none"),
+        (["--fork", "{rnac}", "--at", "5"], "is a rnac run; forks are for the SAC family (sac, adarl"),
+        (["--fork", "{sac}", "--at", "5", "--hidden", "8,8"], "--hidden cannot change at a fork"),
+        (["--fork", "{missing}", "--at", "5"], "does not exist"),
+    ],
+)  # fmt: skip
+def test_bad_forks_are_one_line_exit_2_and_create_nothing(argv, needle, tmp_path, capsys):
+    runs = {}
+    for algo in ("sac", "rnac"):  # run folders with a config and no checkpoint
+        runs[algo] = tmp_path / algo
+        runs[algo].mkdir()
+        (runs[algo] / "config.yaml").write_text(f"algo: {algo}\nformat_version: 1\n")
+    runs["missing"] = tmp_path / "missing"
+    argv = [a.format(**runs) for a in argv]
+    out = tmp_path / "fork"
+    code = main(["train", *argv, "--out", str(out), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert needle in err, err
+    assert err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_fork_the_control_at_the_first_truncation(tmp_path, capsys):
+    """The documented command: the control forked from an AdaRL run where it first truncates."""
+    parent, child = tmp_path / "adarl", tmp_path / "control"
+    budget = ["--preset", "smoke", "--total-steps", "700", "--truncate-every", "100"]
+    assert main(["train", "--algo", "adarl", *budget, "--out", str(parent), "--no-progress"]) == 0
+    argv = ["--fork", str(parent), "--at", "first-truncation", "--apply-cuts", "false"]
+    assert main(["train", *argv, "--out", str(child), "--no-progress"]) == 0
+    assert "done: adarl-control on hopper" in capsys.readouterr().out
+    import yaml
+
+    from adarl.train.io import read_csv
+
+    config = yaml.safe_load((child / "config.yaml").read_text())
+    assert config["algo"] == "adarl-control" and config["apply_cuts"] is False
+    assert config["fork"]["step"] == 550 and config["fork"]["checkpoint"] == "pre_truncation"
+    cuts = read_csv(child / "truncations.csv")
+    assert {r["step"] for r in cuts} == {"550", "650"}
+    assert all(r["new_rank"] == r["old_rank"] for r in cuts)
+    assert main(["train", "--resume", str(child), "--no-progress"]) == 0  # already complete
+    assert "is already complete" in capsys.readouterr().err

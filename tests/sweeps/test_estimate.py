@@ -172,11 +172,12 @@ def _real_wall_s(name):
 def test_shipped_measurements_against_the_committed_experiments(name):
     sweep = spec.load(name)
     shipped = estimate.read_measurements()
-    own = estimate.estimate(sweep, {}, 2, shipped, cores=2)  # from its own units' measurements
+    # they ran in file order, before the runner started the longest units first
+    own = estimate.estimate(sweep, {}, 2, shipped, cores=2, longest_first=False)
     assert own.seconds == pytest.approx(_real_wall_s(name), rel=0.03)
     source = f"docs/experiments/{name}.md"
     other = [m for m in shipped if m.source != source]  # from the other experiment only
-    borrowed = estimate.estimate(sweep, {}, 2, other, cores=2)
+    borrowed = estimate.estimate(sweep, {}, 2, other, cores=2, longest_first=False)
     assert 0.7 < borrowed.seconds / _real_wall_s(name) < 1.35
 
 
@@ -189,3 +190,33 @@ def test_measurements_of_a_sweep_folder(tmp_path):
     assert estimate.measurements_of(sweep, "x") == [
         Measurement("sac", "hopper", "sac", 3, 4000, pytest.approx(80.0), "x")
     ]
+
+
+def test_a_fork_starts_when_its_parent_reaches_the_fork_point():
+    jobs = [("a", 100.0, None, 60.0), ("c", 50.0, None, 0.0), ("b", 30.0, "a", 60.0)]
+    assert estimate.fork_schedule_seconds(jobs, 2) == 100  # b: 60-90 on c's slot
+    assert estimate.fork_schedule_seconds(jobs, 1) == 180  # a, then c (queued first), then b
+    assert estimate.fork_schedule_seconds([("b", 30.0, "gone", 60.0)], 1) == 30  # parent done
+
+
+def test_a_fork_unit_costs_the_steps_after_its_fork_point():
+    parent = _unit("hopper/adarl/seeds-0-2")
+    child = Unit("hopper/c/seeds-0-2", "hopper", "adarl-control", "c", (0, 1, 2), 120_000, (),
+                 None, fork_of=parent.id, fork_step=90_000)  # fmt: skip
+    sweep = Sweep("s", "s.yaml", (parent, child))
+    found = estimate.estimate(sweep, {}, 2, [_measured(300)], cores=2)
+    by_id = {u.unit_id: u for u in found.units}
+    assert by_id[child.id].matched == "algo and task"  # the control costs what adarl does
+    assert by_id[child.id].seconds == pytest.approx(estimate.STARTUP_S + 3 * 30_000 / 300)
+    # the child waits for the parent's 90k of 120k steps: 10 + 900 s after the parent's start
+    assert found.seconds == pytest.approx(estimate.STARTUP_S + 900 + by_id[child.id].seconds)
+
+
+def test_the_estimate_schedules_the_longest_units_first():
+    units = (_unit("hopper/adarl/a"), _unit("hopper/adarl/b"), _unit("hopper/adarl/c", seeds=30))
+    found = estimate.estimate(Sweep("s", "s.yaml", units), {}, 2, [_measured(300)], cores=2)
+    short, _, long_ = (u.seconds for u in found.units)
+    assert long_ > 2 * short
+    # the long one at once, the short ones one after the other beside it (in file order the
+    # long one would start when a short one ends)
+    assert found.seconds == pytest.approx(long_)

@@ -62,3 +62,101 @@ def test_bad_input_is_not_retried(tmp_path, capsys):
     code, record = _sweep(tmp_path, backend)
     assert code == 1 and len(backend.jobs) == 1 and record["status"] == "failed"
     assert "(bad input, not retried)" in capsys.readouterr().out
+
+
+class WritingBackend(FakeBackend):
+    """Finishes every job with exit 0 as a real unit would leave its folder: DONE, and for the
+    units in `fork_points` (id -> step) the checkpoint they keep before that truncation."""
+
+    def __init__(self, out, fork_points=(), codes=None):
+        super().__init__()
+        self.out, self.fork_points, self.codes = out, dict(fork_points), codes or {}
+
+    def submit(self, job):
+        args = job["worker_args"]
+        run_dir = args[args.index("--run-dir") + 1]
+        uid = str(run_dir).removeprefix(str(self.out.resolve()) + "/")
+        self.jobs.append(job)
+        code = self.codes.get(uid, 0)
+        if code == 0:
+            from pathlib import Path
+
+            run = Path(run_dir)
+            run.mkdir(parents=True, exist_ok=True)
+            if uid in self.fork_points:
+                point = run / "checkpoints/pre_truncation" / f"step_{self.fork_points[uid]:012d}"
+                point.mkdir(parents=True)
+                (point / "meta.json").write_text("{}")
+                (point / "arrays.npz").write_bytes(b"")
+            (run / "DONE").write_text("done\n")
+        future = cf.Future()
+        future.set_result({"returncode": code, "host": "h"})
+        return future
+
+
+def _uids(backend):
+    return [j["worker_args"][j["worker_args"].index("--run-dir") + 1].split("/out/")[1]
+            for j in backend.jobs]  # fmt: skip
+
+
+def test_the_longest_units_start_first(tmp_path):
+    doc = {"tasks": ["hopper", "walker2d"], "algos": ["sac"], "seeds": [0], "preset": "smoke",
+           "budget": {"hopper": 1000, "walker2d": 5000}}  # fmt: skip
+    sweep = spec.parse(doc, source="t.yaml", default_name="t")
+    backend = WritingBackend(tmp_path / "out")
+    runner.run_sweep(sweep, tmp_path / "out", backend, runner.Options(progress_every=1e9))
+    assert _uids(backend) == ["walker2d/sac/seeds-0", "hopper/sac/seeds-0"]  # file order reversed
+
+
+FORK_SWEEP = {
+    "tasks": ["hopper"],
+    "algos": [
+        {"algo": "adarl", "name": "a", "rank_rule": "cumulative"},
+        {"algo": "adarl-control", "name": "c", "rank_rule": "cumulative",
+         "fork": {"from": "a", "at": "first-truncation"}},
+    ],
+    "seeds": "0-1",
+    "preset": "smoke",
+    "budget": 2000,
+}  # fmt: skip
+
+
+def _fork_sweep(tmp_path, backend):
+    sweep = spec.parse(FORK_SWEEP, source="t.yaml", default_name="t")
+    options = runner.Options(max_retries=0, progress_every=1e9)
+    code = runner.run_sweep(sweep, tmp_path / "out", backend, options)
+    units = json.loads((tmp_path / "out" / "manifest.json").read_text())["units"]
+    return code, units
+
+
+def test_a_fork_unit_starts_once_its_parent_has_written_the_fork_point(tmp_path, monkeypatch):
+    monkeypatch.setattr(runner, "POLL_S", 0.01)
+    backend = WritingBackend(tmp_path / "out", {"hopper/a/seeds-0-1": 950})
+    code, units = _fork_sweep(tmp_path, backend)
+    assert code == 0 and _uids(backend) == ["hopper/a/seeds-0-1", "hopper/c/seeds-0-1"]
+    args = backend.jobs[1]["worker_args"]
+    train = args[args.index("--") + 1 :]
+    parent = str((tmp_path / "out").resolve() / "hopper/a/seeds-0-1")
+    assert train == ["--fork", parent, "--at", "950", "--apply-cuts", "false"]
+    assert units["hopper/c/seeds-0-1"]["status"] == "done"
+
+
+def test_a_fork_fails_with_its_parent_or_without_its_fork_point(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(runner, "POLL_S", 0.01)
+    backend = WritingBackend(tmp_path / "out")  # the parent ends without the checkpoint
+    code, units = _fork_sweep(tmp_path, backend)
+    assert code == 1 and _uids(backend) == ["hopper/a/seeds-0-1"]
+    assert units["hopper/c/seeds-0-1"]["error"] == (
+        "its parent hopper/a/seeds-0-1 has no checkpoint at step 950"
+    )
+    backend = WritingBackend(tmp_path / "again", codes={"hopper/a/seeds-0-1": 1})
+    sweep = spec.parse(FORK_SWEEP, source="t.yaml", default_name="t")
+    options = runner.Options(max_retries=0, progress_every=1e9)
+    assert runner.run_sweep(sweep, tmp_path / "again", backend, options) == 1
+    units = json.loads((tmp_path / "again" / "manifest.json").read_text())["units"]
+    assert units["hopper/c/seeds-0-1"]["status"] == "failed"
+    assert units["hopper/c/seeds-0-1"]["error"] == "its parent hopper/a/seeds-0-1 failed"
+    assert (
+        "hopper/c/seeds-0-1  failed   its parent hopper/a/seeds-0-1 failed"
+        in capsys.readouterr().out
+    )

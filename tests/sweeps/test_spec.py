@@ -95,6 +95,12 @@ def test_presets_expand_to_the_documented_protocols():
         "repro-walker2d",
         "ratio-rule-hopper",
         "ratio-rule-walker2d",
+        "mechanism-hopper",
+        "mechanism-walker2d",
+        "paper-schedule-hopper",
+        "physics-power",
+        "fixed-rank-power",
+        "claim2-first-look",
     }
     assert len(units["physics"]) == 8  # 2 tasks x physics consistent/ompo x models v5/v4
     table1 = units["paper-table1"]
@@ -175,3 +181,79 @@ def test_the_files_preset_reaches_the_algorithms_that_have_it():
     assert presets == ["quickstart", None, "ipm"]
     with pytest.raises(UsageError, match="unknown preset 'quikstart'"):
         _parse(preset="quikstart")
+
+
+ARMS = [
+    {"algo": "adarl", "name": "a", "rank_rule": "cumulative"},
+    {"algo": "adarl-control", "name": "c", "rank_rule": "cumulative",
+     "fork": {"from": "a", "at": "first-truncation"}},
+]  # fmt: skip
+FORKED = {"preset": "smoke", "seeds": "0-3", "seeds_per_unit": 2, "budget": 2000}
+
+
+def test_a_fork_entry_forks_each_unit_of_its_parent_at_its_truncation():
+    sweep = _parse(algos=ARMS, **FORKED)
+    parents, forks = sweep.units[:2], sweep.units[2:]
+    assert [u.fork_of for u in forks] == [u.id for u in parents]
+    # smoke: updates from step 500, d_t = 500 updates: the first truncation after step 950
+    assert [u.fork_step for u in forks] == [950, 950]
+    assert forks[0].train_args == (
+        "--fork", "hopper/a/seeds-0-1", "--at", "950", "--apply-cuts", "false"
+    )  # fmt: skip
+    assert forks[0].config.algo == "adarl-control" and not forks[0].config.apply_cuts
+    assert forks[1].config.seeds == (2, 3) and forks[1].total_steps == 2000
+    later = dict(ARMS[1], fork={"from": "a", "at": 1450}, eval_every=500)
+    fork = _parse(algos=[ARMS[0], later], **FORKED).units[-1]
+    assert fork.train_args == ("--fork", "hopper/a/seeds-2-3", "--at", "1450",
+                               "--apply-cuts", "false", "--eval-every", "500")  # fmt: skip
+
+
+@pytest.mark.parametrize("entry, message", [
+    ({"fork": {"from": "b", "at": "first-truncation"}}, r"fork from 'b': no such entry .*; entries: a"),
+    ({"fork": {"from": "a"}}, "fork must be a mapping {from: <entry label>, at: first-truncation"),
+    ({"fork": {"from": "a", "at": 1000}}, r"fork at step 1000: hopper/a/seeds-0-1 truncates at 950, 1450"),
+    ({"fork": {"from": "a", "at": "later"}}, "--at expects a step or first-truncation, got 'later'"),
+    ({"hidden": [32, 32]}, "hidden differs .* but cannot change at a fork"),
+    ({"seeds": "1-2"}, r"its parent hopper/a/seeds-1-2 is not in the sweep"),
+    ({"grid": {"beta": [0.9, 0.95]}, "name": None}, "on an entry without a grid"),
+])  # fmt: skip
+def test_bad_fork_entries_name_the_problem(entry, message):
+    child = {k: v for k, v in {**ARMS[1], **entry}.items() if v is not None}
+    with pytest.raises(UsageError, match=message):
+        _parse(algos=[ARMS[0], child], **{**FORKED, "seeds_per_unit": 2, "seeds": "0-3"})
+
+
+def test_the_campaign_presets():
+    for task in ("hopper", "walker2d"):
+        units = spec.load(f"mechanism-{task}").units
+        assert [(u.algo, u.seeds) for u in units] == [
+            (algo, seeds) for algo in ("adarl", "adarl-control")
+            for seeds in ((0, 1, 2, 3, 4), (5, 6, 7, 8, 9))
+        ]  # fmt: skip
+        adarl, control = units[0].config, units[2].config
+        assert (adarl.rank_rule, adarl.truncate_every, adarl.total_steps) == (
+            "cumulative", 300_000, 450_000)  # fmt: skip
+        assert (adarl.start_steps, adarl.buffer_size) == (10_000, 1_000_000)
+        assert [u.fork_step for u in units[2:]] == [300_950, 300_950]
+        assert units[2].fork_of == units[0].id and control.rank_rule == "cumulative"
+    paper = spec.load("paper-schedule-hopper").units
+    assert [u.algo for u in paper] == ["adarl", "adarl-control", "sac"]
+    assert all(u.seeds == (0, 1, 2, 3, 4) and u.total_steps == 3_000_000 for u in paper)
+    assert paper[1].fork_step == 1_000_950 and paper[0].config.truncate_every == 1_000_000
+    assert {(u.config.eval_every, u.config.start_steps, u.config.buffer_size) for u in paper} == {
+        (50_000, 10_000, 1_000_000)
+    }
+    physics = spec.load("physics-power").units
+    assert sorted({(u.config.dynamics, u.config.physics, u.config.model_version) for u in physics}) == [
+        ("ompo", "ompo", "v4"), ("paper", "consistent", "v5"), ("paper", "ompo", "v5")
+    ]  # fmt: skip
+    assert all(u.algo == "sac" and u.total_steps == 150_000 for u in physics)
+    assert sorted(s for u in physics for s in u.seeds) == sorted(list(range(10)) * 3)
+    fixed = spec.load("fixed-rank-power").units
+    assert sorted((u.config.rank, u.seeds) for u in fixed) == [
+        (r, s) for r in (7, 13, 64) for s in ((0, 1, 2, 3, 4), (5, 6, 7, 8, 9))
+    ]
+    assert {u.total_steps for u in fixed} == {300_000}
+    for name in ("mechanism-hopper", "paper-schedule-hopper", "physics-power", "fixed-rank-power"):
+        header = spec.resolve(name).read_text().split("\nname:")[0]
+        assert "seed-steps" in header and "Estimated ~" in header, name

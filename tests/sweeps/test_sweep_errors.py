@@ -39,7 +39,7 @@ def test_bad_sweep_file(tmp_path, capsys, write_spec, changes, message):
 
 
 def test_unknown_preset_and_broken_yaml(tmp_path, capsys):
-    listed = "presets: fixed-rank-sweep, fixed-rank-u, paper-hopper-small"
+    listed = "presets: claim2-first-look, fixed-rank-power, fixed-rank-sweep, fixed-rank-u"
     assert listed in _run(capsys, "paper-table2")
     broken = tmp_path / "b.yaml"
     broken.write_text("tasks: [hopper\n")

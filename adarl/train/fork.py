@@ -1,0 +1,246 @@
+"""Forks: a new run that starts from another run's exact state at one of its checkpoints, with
+some settings changed (`adarl train --fork RUN_DIR --at STEP --out NEW [--field value ...]`).
+
+Why: AdaRL's schedule-matched control must differ from AdaRL in nothing but the components a
+truncation removes. Forking an AdaRL run at the checkpoint it keeps just before its first
+truncation (`checkpoints/pre_truncation/step_N`) with `--apply-cuts false` gives that control:
+both arms share the whole prefix bit for bit (replay buffer, RNG streams, optimiser and
+environment states), and the prefix is trained once. A fork that changes nothing continues
+exactly as its parent did (tests/train/test_fork.py).
+
+The child is a complete run folder (docs/run-format.md): the parent's CSV rows up to STEP (so its
+curves start at 0), the parent's spectra of the truncations before the fork point, the checkpoint
+it starts from as its own first checkpoint (with the child's config), `config.yaml` with a `fork`
+record (`from`, `step`, `checkpoint`, `changed`) and `environment.json` with the same record and
+the parent's environment. It then trains as a resumed run does. Only the fields in `FORKABLE`
+may change; a field that fixes what was already trained (task, networks, seeds, buffer, …) is a
+one-line UsageError, as are a missing checkpoint and RNAC runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from adarl.errors import UsageError
+from adarl.train import io
+from adarl.train import run_folder as rf
+
+# Config fields a fork may change: what the truncations from the fork point on do, the budget and
+# the learning-rate schedule, and how the run is evaluated, logged and checkpointed. Everything
+# else (task, dynamics, networks, seeds, buffer, SAC's hyperparameters, …) made the state the
+# fork starts from.
+FORKABLE = (
+    "apply_cuts",
+    "rank_rule",
+    "beta",
+    "retain_tolerance",
+    "retain_samples",
+    "truncate_every",
+    "total_steps",
+    "lr_schedule",
+    "warmup_steps",
+    "lr_min_ratio",
+    "schedule_first_iteration",
+    "eval_every",
+    "eval_episodes",
+    "eval_dynamics",
+    "log_every",
+    "checkpoint_every",
+    "keep_checkpoints",
+    "checkpoint_before_truncation",
+    "on_divergence",
+)
+FIRST_TRUNCATION = "first-truncation"  # --at: the parent's first truncation step
+SAC_TRAINER = "adarl.train.sac_loop:train"
+# AdaRL and its control: `apply_cuts` decides which of the two a fork is
+CONTROL_PAIR = {True: "adarl", False: "adarl-control"}
+
+
+@dataclass(frozen=True)
+class Fork:
+    """A checked fork, not yet written: what the child starts from and trains."""
+
+    parent: Path
+    step: int
+    checkpoint: Path  # the parent's checkpoint folder it starts from
+    algo: str
+    config: object  # the child's SACConfig
+    record: dict  # config.yaml's `fork`
+
+
+def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) -> Fork:
+    """Check a fork of run `parent` at `at` (a step, or `first-truncation`) with `changes`
+    (field -> value, or text as typed) without writing anything; one-line UsageErrors."""
+    from adarl.algos import registry
+
+    parent = Path(parent).resolve()
+    algo, before = rf.config_from_run(parent)
+    if registry.get(algo).trainer != SAC_TRAINER:
+        family = [a.name for a in registry.ALGORITHMS.values() if a.trainer == SAC_TRAINER]
+        raise UsageError(
+            f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(family)})"
+        )
+    config, changed = forked_config(algo, before, changes)
+    step = fork_step(before, at)
+    points = fork_points(parent)
+    if step not in points:
+        raise UsageError(
+            f"{parent} has no checkpoint at step {step}; fork points: {describe_points(points)}"
+        )
+    checkpoint = points[step]
+    pre = checkpoint.parent.name == Path(rf.PRE_TRUNCATION_DIR).name
+    if config.total_steps < step or (config.total_steps == step and not pre):
+        raise UsageError(
+            f"total-steps {config.total_steps} leaves nothing to train after the fork at step "
+            f"{step}; give --total-steps > {step}"
+        )
+    record = {
+        "from": str(parent),
+        "step": step,
+        "checkpoint": "pre_truncation" if pre else "end_of_chunk",
+        "changed": changed,
+    }
+    return Fork(parent, step, checkpoint, config.algo, config, record)
+
+
+def fork_step(config, at: str | int) -> int:
+    """`at` as an environment step: a number, or `first-truncation` (the first step at which a
+    run of `config` truncates)."""
+    from adarl.algos import sac
+
+    text = str(at).strip().replace("_", "-")
+    if text == FIRST_TRUNCATION:
+        steps = sac.truncation_steps(config)
+        if not steps:
+            raise UsageError(
+                f"--at {FIRST_TRUNCATION}: a {config.algo} run of {config.total_steps} steps with "
+                f"truncate-every {config.truncate_every} never truncates"
+            )
+        return steps[0]
+    try:
+        return int(str(at).replace("_", ""))
+    except ValueError:
+        raise UsageError(f"--at expects a step or {FIRST_TRUNCATION}, got {at!r}") from None
+
+
+def fork_points(run_dir: Path) -> dict[int, Path]:
+    """Every step a run can be forked at -> its checkpoint folder; at a step with both, the
+    pre-truncation checkpoint (the state before that step's truncation)."""
+    points = {_step(p): p for p in io.checkpoint_dirs(run_dir)}
+    points.update({_step(p): p for p in io.checkpoint_dirs(run_dir, io.PRE_TRUNCATION_DIR)})
+    return dict(sorted(points.items()))
+
+
+def describe_points(points: Mapping[int, Path]) -> str:
+    """`950 (pre-truncation), 1000, 1500`, or `none`."""
+    pre = Path(rf.PRE_TRUNCATION_DIR).name
+    return (
+        ", ".join(
+            f"{s}{' (pre-truncation)' if p.parent.name == pre else ''}" for s, p in points.items()
+        )
+        or "none"
+    )
+
+
+def forked_config(algo: str, parent, changes: Mapping[str, object]):
+    """(child config, changed) for `changes` (field -> value, or text as typed) to the config
+    `parent` of an `algo` run; `changed` maps each field that differs to {from, to}. Turning
+    `apply_cuts` off (on) makes an AdaRL run its control (the control AdaRL)."""
+    from adarl.algos import registry
+    from adarl.algos.flags import parse_value, type_text
+
+    hints = typing.get_type_hints(type(parent))
+    values = {}
+    for name, value in changes.items():
+        flag = f"--{name.replace('_', '-')}"
+        if name not in hints:
+            raise UsageError(f"{flag} does not apply to --algo {algo}")
+        if name not in FORKABLE:
+            allowed = ", ".join(f"--{f.replace('_', '-')}" for f in FORKABLE)
+            raise UsageError(
+                f"{flag} cannot change at a fork: it shaped the state the fork starts from; "
+                f"fields that may change: {allowed}"
+            )
+        values[name] = (
+            parse_value(name, value, type_text(hints[name])) if isinstance(value, str) else value
+        )
+    if "apply_cuts" in values and algo in CONTROL_PAIR.values():
+        values["algo"] = CONTROL_PAIR[bool(values["apply_cuts"])]
+    child = dataclasses.replace(parent, **values).validate()
+    registry.get(child.algo)
+    then, now = io.config_record(parent), io.config_record(child)
+    changed = {k: {"from": then[k], "to": now[k]} for k in now if then.get(k) != now[k]}
+    return child, changed
+
+
+def check_forkable(parent, child) -> dict:
+    """The fields in which config `child` differs from `parent` ({from, to}), or a one-line
+    UsageError naming the first one a fork cannot change (the sweeps check their fork units
+    with it)."""
+    then, now = io.config_record(parent), io.config_record(child)
+    changed = {k: {"from": then.get(k), "to": now[k]} for k in now if then.get(k) != now[k]}
+    if "algo" in changed and set(CONTROL_PAIR.values()) != {then["algo"], now["algo"]}:
+        raise UsageError(
+            f"a fork keeps its parent's algorithm ({then['algo']}); only adarl and "
+            "adarl-control fork into each other (apply-cuts)"
+        )
+    for name in changed:
+        if name not in (*FORKABLE, "algo"):
+            raise UsageError(
+                f"{name} differs ({then.get(name)!r} in the parent, {now[name]!r} in the fork) "
+                "but cannot change at a fork"
+            )
+    return changed
+
+
+def write(fork: Fork, out: Path, command: str) -> None:
+    """Create the child run folder `out` (new or empty): CSV rows up to the fork point,
+    spectra before it, environment.json, config.yaml, then its first checkpoint (last, and
+    atomic: a fork folder without a checkpoint is incomplete, which `--resume` refuses and the
+    sweeps' worker makes again)."""
+    out = Path(out)
+    io.check_new_run_dir(out)
+    arrays, meta = io.load_checkpoint(fork.checkpoint)
+    if int(meta["step"]) != fork.step:
+        raise UsageError(f"checkpoint {fork.checkpoint} is of step {meta['step']}, not {fork.step}")
+    _, parent_config = rf.config_from_run(fork.parent)
+    io.check_resume_config(fork.parent, meta, parent_config)  # the checkpoint is of this run
+    with io.RunLock(out) as lock:
+        lock.acquire(new=True)
+        for name, offset in rf.csv_offsets(meta).items():
+            source = fork.parent / name
+            data = source.read_bytes()[:offset] if source.exists() else b""
+            if len(data) < offset:
+                raise UsageError(
+                    f"{source} is shorter ({len(data)} bytes) than its checkpoint at step "
+                    f"{fork.step} says ({offset})"
+                )
+            io.atomic_write_bytes(out / name, data)
+        pre = fork.record["checkpoint"] == "pre_truncation"
+        for spectrum in sorted((fork.parent / "spectra").glob("step_*.npz")):
+            step = int(spectrum.stem.split("_")[1])
+            if step < fork.step or (step == fork.step and not pre):
+                io.atomic_write_bytes(out / "spectra" / spectrum.name, spectrum.read_bytes())
+        from adarl.train.provenance import read_environment
+
+        parent_env = {"parent_environment": read_environment(fork.parent)}
+        io.write_environment(out, {"fork": {**fork.record, **parent_env}})
+        rf.write_config(out, fork.config, fork.algo, command, fork=fork.record)
+        files = {
+            p.name: p.read_bytes()
+            for p in sorted(fork.checkpoint.iterdir())
+            if p.name not in ("arrays.npz", "meta.json")
+        }
+        meta = {k: v for k, v in meta.items() if k != "arrays_sha256"}
+        meta.update(algo=fork.algo, config=io.config_record(fork.config), fork=fork.record)
+        io.save_checkpoint(
+            out, fork.step, arrays, meta, keep=fork.config.keep_checkpoints, files=files
+        )
+
+
+def _step(path: Path) -> int:
+    return int(path.name.split("_")[1])
