@@ -153,7 +153,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.progress_every > 0:  # NaN too; inf: never
         raise UsageError(f"--progress-every must be seconds > 0, got {args.progress_every:g}")
     if args.address and args.backend != "ray":  # as `adarl evaluate --suite`
-        raise UsageError(f"--address {args.address} is for --backend ray; allowed: --backend ray")
+        raise UsageError(
+            f"--address is for --backend ray, got --address {args.address} with --backend "
+            f"{args.backend}; allowed: --backend ray --address HOST:PORT, or no --address"
+        )
     sweep = spec.load(args.spec)
     out = Path(args.out) if args.out else Path("sweeps") / sweep.name
     check_writable_dir(out)  # a dry run too: it promises what a real one would do

@@ -31,7 +31,8 @@ def test_sweep_and_evaluate_both_refuse_an_address_without_ray(tmp_path, capsys)
     address = ["--backend", "local", "--address", "10.0.0.1:6379"]
     assert main(["sweep", "smoke", "--dry-run", *address, "--out", str(tmp_path / "s")]) == 2
     err = error_line(capsys)
-    assert "--address 10.0.0.1:6379 is for --backend ray; allowed: --backend ray" in err, err
+    assert "--address is for --backend ray, got --address 10.0.0.1:6379 with --backend local" in err
+    assert "allowed: --backend ray --address HOST:PORT, or no --address" in err
     run = write_run(tmp_path, "r", seeds=(0,))
     assert main(["evaluate", str(run), "--suite", "m2td3-1d", *address]) == 2
     assert "--address is for --backend ray" in error_line(capsys)
