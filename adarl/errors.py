@@ -13,6 +13,11 @@ import math
 #: What a trainer does when a loss, parameter or return stops being finite (`--on-divergence`).
 ON_DIVERGENCE = ("stop", "continue")
 INT64_MAX = 2**63 - 1
+#: `--eval-dynamics ""` (or `eval_dynamics: []`) would skip every evaluation without a word.
+EVAL_DYNAMICS_EMPTY = (
+    "eval-dynamics is empty (it would skip every evaluation); allowed: one or more dynamics, "
+    "comma-separated: nominal, default, paper, ompo, uniform, fixed:NAME=VALUE"
+)
 
 
 class UsageError(ValueError):
@@ -41,10 +46,15 @@ def check_choice(kind: str, value: str, allowed) -> str:
 
 def check_numbers(config) -> None:
     """Every float field of the dataclass `config` finite, every int field (and int in a tuple)
-    within int64; else a one-line `UsageError` naming the field."""
+    within int64, every tuple field a list; else a one-line `UsageError` naming the field."""
     for f in dataclasses.fields(config):
         value = getattr(config, f.name)
         flag = f.name.replace("_", "-")
+        if str(f.type).startswith("tuple") and not isinstance(value, tuple | list):
+            raise UsageError(  # `seeds: 0` in a config.yaml
+                f"{flag} must be a list (in config.yaml [a, b, ...]; as a flag --{flag} a,b), "
+                f"got {value!r}"
+            )
         for v in value if isinstance(value, tuple) else (value,):
             if isinstance(v, bool):
                 continue

@@ -30,7 +30,7 @@ import numpy as np
 import optax
 
 from adarl.envs.tasks import PHYSICS, VERSIONS
-from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
+from adarl.errors import EVAL_DYNAMICS_EMPTY, ON_DIVERGENCE, UsageError, check_choice, check_numbers
 from adarl.nets.gaussian import gaussian_entropy, gaussian_log_prob
 from adarl.nets.mlp import orthogonal
 
@@ -126,11 +126,12 @@ class RNACConfig:
             "adam_eps",
             "max_grad_norm",
             "obs_clip",
+            "eval_episodes",  # as the SAC family: 0 would silently skip every evaluation
         ]
         for name in positive:
             if not getattr(self, name) > 0:
                 raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
-        for name in ("eval_episodes", "action_noise", "weight_reg", "ent_coef"):
+        for name in ("action_noise", "weight_reg", "ent_coef"):
             if not getattr(self, name) >= 0:
                 raise UsageError(f"{name.replace('_', '-')} must be ≥ 0, got {getattr(self, name)}")
         if self.rollout_steps % self.minibatch_size:
@@ -146,6 +147,8 @@ class RNACConfig:
             raise UsageError(f"gae-lambda must be in [0, 1], got {self.gae_lambda}")
         if not self.seeds:
             raise UsageError("seeds is empty; give at least one seed, e.g. --seeds 0-4")
+        if not self.eval_dynamics:
+            raise UsageError(EVAL_DYNAMICS_EMPTY)
         if len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
             raise UsageError(f"seeds must be distinct and ≥ 0, got {list(self.seeds)}")
         if not self.hidden or any(h < 1 for h in self.hidden):

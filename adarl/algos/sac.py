@@ -25,7 +25,7 @@ import optax
 
 from adarl.algos import replay
 from adarl.envs.tasks import PHYSICS, VERSIONS
-from adarl.errors import ON_DIVERGENCE, UsageError, check_choice, check_numbers
+from adarl.errors import EVAL_DYNAMICS_EMPTY, ON_DIVERGENCE, UsageError, check_choice, check_numbers
 from adarl.nets import mlp, rank
 from adarl.nets.gaussian import gaussian_log_prob
 from adarl.nets.regularisers import parseval_penalty
@@ -160,6 +160,8 @@ class SACConfig:
                 raise UsageError(f"{name.replace('_', '-')} must be ≥ 0, got {getattr(self, name)}")
         if not self.seeds:
             raise UsageError("seeds is empty; give at least one seed, e.g. --seeds 0-4")
+        if not self.eval_dynamics:
+            raise UsageError(EVAL_DYNAMICS_EMPTY)
         if len(set(self.seeds)) != len(self.seeds):
             raise UsageError(f"seeds contain duplicates: {list(self.seeds)}")
         if not 0.0 < self.beta < 1.0:

@@ -9,6 +9,7 @@ import shlex
 import textwrap
 from pathlib import Path
 
+from adarl.errors import UsageError
 from adarl.sweeps.spec import list_presets
 
 HELP = "run a sweep (tasks x algorithms x seeds) from a YAML file or preset, locally or on Ray"
@@ -130,7 +131,6 @@ def tracking_env(environ) -> dict[str, str]:
 def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]:
     """The `adarl train` flags that mirror every unit to W&B (none without --track); a one-line
     UsageError if wandb is missing or a --wandb-* flag comes without --track."""
-    from adarl.errors import UsageError
     from adarl.train import tracking
 
     given = [n for n in ("wandb_project", "wandb_entity") if getattr(args, n) is not None]
@@ -150,6 +150,13 @@ def run(args: argparse.Namespace) -> int:
     from adarl.sweeps.backends import default_workers, make_backend
     from adarl.train.io import check_writable_dir
 
+    if not args.progress_every > 0:  # NaN too; inf: never
+        raise UsageError(f"--progress-every must be seconds > 0, got {args.progress_every:g}")
+    if args.address and args.backend != "ray":  # as `adarl evaluate --suite`
+        raise UsageError(
+            f"--address is for --backend ray, got --address {args.address} with --backend "
+            f"{args.backend}; allowed: --backend ray --address HOST:PORT, or no --address"
+        )
     sweep = spec.load(args.spec)
     out = Path(args.out) if args.out else Path("sweeps") / sweep.name
     check_writable_dir(out)  # a dry run too: it promises what a real one would do

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adarl.envs.params import PARAMS, Sinusoid, check_plausible
+from adarl.envs.params import PARAMS, Sinusoid, check_given
 from adarl.envs.tasks import get_task
 from adarl.errors import UsageError, check_choice
 
@@ -144,9 +144,7 @@ class DynamicsSchedule:
         spec = get_task(self.task)
         for name in values:
             _check_name(spec, name)
-        values = {
-            k: check_plausible(k, PARAMS[k].check(v), spec.all_params[k]) for k, v in values.items()
-        }
+        values = {k: check_given(k, v, spec.all_params[k]) for k, v in values.items()}
         suffix = ",".join(f"{k}={v!r}" for k, v in values.items())
         return DynamicsSchedule(
             task=self.task,
@@ -220,5 +218,5 @@ def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
             raise UsageError(
                 f"parameter {name!r} given twice in dynamics {text!r}; allowed: once each"
             )
-        values[name] = PARAMS[name].check(value)
+        values[name] = check_given(name, value, spec.all_params[name])
     return values

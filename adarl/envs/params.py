@@ -77,20 +77,41 @@ WIDE_FACTOR = {
 }
 
 
-def check_plausible(name: str, value: float, default: float) -> float:
-    """`value` if it is within `PLAUSIBLE_FACTOR` of `default` (the task's), else a one-line
-    `UsageError`: values far outside make MuJoCo unstable (a flood of warnings, NaN states)."""
+def plausible_range(name: str, default: float) -> tuple[float, float, str]:
+    """`(low, high, why)`: the values of `name` accepted from a user when the task's default is
+    `default` (within `PLAUSIBLE_FACTOR` of it, and of the allowed sign)."""
     factor = WIDE_FACTOR.get(name, PLAUSIBLE_FACTOR)
     scale = abs(default) or ZERO_DEFAULT_SCALE.get(name, 1.0)
     high = factor * scale
     low = scale / factor if PARAMS[name].strict else (-high if PARAMS[name].lower is None else 0.0)
+    why = f"within {factor:g}x of {'its default' if default else 'a typical'} {scale:g}"
+    return low, high, f"{why}; docs/envs.md"
+
+
+def check_plausible(name: str, value: float, default: float) -> float:
+    """`value` if it is within `PLAUSIBLE_FACTOR` of `default` (the task's), else a one-line
+    `UsageError`: values far outside make MuJoCo unstable (a flood of warnings, NaN states)."""
+    low, high, why = plausible_range(name, default)
     if not low <= value <= high:
         raise UsageError(
-            f"implausible value {value:g} for {name}; allowed: {low:g} to {high:g} "
-            f"(within {factor:g}x of {'its default' if default else 'a typical'} "
-            f"{scale:g}; docs/envs.md)"
+            f"implausible value {value:g} for {name}; allowed: {low:g} to {high:g} ({why})"
         )
     return value
+
+
+def check_given(name: str, value, default: float) -> float:
+    """A value a user gives for `name` (`fixed:NAME=VALUE`, a keyword, `--hold`): a number of
+    the allowed sign within the plausible range around the task's `default`, as a float; else a
+    one-line `UsageError` naming the value and that range (not only the sign)."""
+    try:
+        number = PARAMS[name].check(value)
+    except UsageError:
+        low, high, why = plausible_range(name, default)
+        raise UsageError(
+            f"bad value {value!r} for {name}; allowed: {low:g} to {high:g} "
+            f"({PARAMS[name].allowed}, {why})"
+        ) from None
+    return check_plausible(name, number, default)
 
 
 @dataclass(frozen=True)

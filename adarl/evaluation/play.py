@@ -174,6 +174,7 @@ def play(
     # render_mode keeps the model's textures (floor, sky); we render with our own camera
     env = make(task, dynamics=dynamics, seed=seed, render_mode="rgb_array", **(overrides or {}))
     try:
+        check_frame_size(env.unwrapped.model, width, height)
         stride, video_fps = frame_stride(env, fps)
         video.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=video.parent, prefix=f".{video.stem}.", suffix=video.suffix)
@@ -192,6 +193,22 @@ def play(
     finally:
         env.close()
     return results
+
+
+def check_frame_size(model, width: int, height: int) -> None:
+    """A frame must fit the model's offscreen framebuffer (`<visual><global offwidth
+    offheight>`, 640 x 480 in Gymnasium's models); else a one-line UsageError naming the flag,
+    before any rendering (MuJoCo's own error would be blamed on the GL backend)."""
+    limits = model.vis.global_
+    for flag, value, limit in (
+        ("--width", width, int(limits.offwidth)),
+        ("--height", height, int(limits.offheight)),
+    ):
+        if value > limit:
+            raise UsageError(
+                f"{flag} {value} is larger than the model's offscreen framebuffer; "
+                f"allowed: 16 to {limit}"
+            )
 
 
 @contextlib.contextmanager

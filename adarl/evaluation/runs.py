@@ -260,7 +260,9 @@ def checkpoint_step(checkpoint: Path) -> int:
 
 
 def select_checkpoint(run: Run, step: int | None = None) -> Path:
-    """The final complete checkpoint of `run`, or the one at `step`; `UsageError` otherwise."""
+    """The final complete checkpoint of `run`, or the one at `step`; `UsageError` otherwise
+    (also for a run written in a newer run format, whose checkpoints this adarl cannot read)."""
+    check_run_format(run)
     found = checkpoint_dirs(run.path)
     if not found:
         raise UsageError(
@@ -273,6 +275,20 @@ def select_checkpoint(run: Run, step: int | None = None) -> Path:
             return checkpoint
     steps = ", ".join(str(checkpoint_step(c)) for c in found)
     raise UsageError(f"run folder {run.path} has no checkpoint at step {step}; it has: {steps}")
+
+
+def check_run_format(run: Run) -> None:
+    """A one-line UsageError for a run folder written in a newer run format than this adarl
+    reads (its checkpoints may not even look complete here)."""
+    from adarl import __version__
+    from adarl.train.io import RUN_FORMAT_VERSION
+
+    version = config_value(run.config, "format_version")
+    if isinstance(version, int) and version > RUN_FORMAT_VERSION:
+        raise UsageError(
+            f"run folder {run.path} was written in run format {version} by a newer adarl; this "
+            f"adarl ({__version__}) reads format {RUN_FORMAT_VERSION}: upgrade adarl to read it"
+        )
 
 
 def policy_files(checkpoint: Path) -> dict[int, Path]:

@@ -1,0 +1,116 @@
+"""One flag, one meaning, one clear error (issue 27, class 5): bad values every command rejects
+alike, with a one-line message naming the value and what is allowed, and exit code 2."""
+
+from __future__ import annotations
+
+import os
+
+import mujoco  # noqa: F401  (imported with this process's MUJOCO_GL, before `adarl play` sets one)
+import pytest
+import yaml
+
+from adarl.cli.main import main
+from adarl.evaluation.synthetic import write_run
+
+
+def error_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    return err
+
+
+@pytest.mark.parametrize("value", ["-5", "0", "nan"])
+def test_sweep_progress_every_must_be_positive(value, tmp_path, capsys):
+    argv = ["sweep", "smoke", "--dry-run", "--progress-every", value, "--out", str(tmp_path / "s")]
+    assert main(argv) == 2
+    assert f"--progress-every must be seconds > 0, got {float(value):g}" in error_line(capsys)
+    assert not (tmp_path / "s").exists()
+
+
+def test_sweep_and_evaluate_both_refuse_an_address_without_ray(tmp_path, capsys):
+    address = ["--backend", "local", "--address", "10.0.0.1:6379"]
+    assert main(["sweep", "smoke", "--dry-run", *address, "--out", str(tmp_path / "s")]) == 2
+    err = error_line(capsys)
+    assert "--address is for --backend ray, got --address 10.0.0.1:6379 with --backend local" in err
+    assert "allowed: --backend ray --address HOST:PORT, or no --address" in err
+    run = write_run(tmp_path, "r", seeds=(0,))
+    assert main(["evaluate", str(run), "--suite", "m2td3-1d", *address]) == 2
+    assert "--address is for --backend ray" in error_line(capsys)
+    assert main(["evaluate", str(run), *address]) == 2
+    assert "--address" in error_line(capsys)
+
+
+@pytest.mark.parametrize("algo", ["rnac", "sac", "adarl"])
+def test_eval_episodes_zero_is_refused_by_every_algorithm(algo, tmp_path, capsys):
+    out = tmp_path / "run"
+    argv = ["train", "--algo", algo, "--preset", "smoke", "--eval-episodes", "0", "--out", str(out)]
+    assert main([*argv, "--no-progress"]) == 2
+    assert "eval-episodes must be > 0, got 0" in error_line(capsys)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("algo", ["rnac", "sac"])
+def test_empty_eval_dynamics_is_refused_not_a_silent_no_evaluation(algo, tmp_path, capsys):
+    out = tmp_path / "run"
+    argv = ["train", "--algo", algo, "--preset", "smoke", "--eval-dynamics", "", "--out", str(out)]
+    assert main([*argv, "--no-progress"]) == 2
+    err = error_line(capsys)
+    assert "eval-dynamics is empty" in err and "allowed: one or more dynamics" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("algo", ["rnac", "sac"])
+def test_seeds_given_as_a_number_in_config_yaml(algo, tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    config = {"algo": algo, "format_version": 1, "task": "hopper", "seeds": 0}
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(config))
+    assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 2
+    err = error_line(capsys)
+    assert "seeds must be a list" in err and "got 0" in err and "is empty" not in err, err
+
+
+def test_play_wider_than_the_framebuffer_names_the_flag_not_the_gl_backend(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))  # play sets these
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+    run = write_run(tmp_path, "r", seeds=(0,))
+    video = tmp_path / "v.gif"
+    for flag, value in (("--width", "4000"), ("--height", "3000")):
+        assert main(["play", str(run), "--video", str(video), flag, value]) == 2
+        err = error_line(capsys)
+        assert f"{flag} {value} is larger than the model's offscreen framebuffer" in err, err
+        assert "allowed: 16 to" in err and "MUJOCO_GL" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]  # no video, no temp file
+
+
+@pytest.mark.parametrize("command", ["evaluate", "export"])
+def test_a_newer_run_format_is_named_as_such(command, tmp_path, capsys):
+    run = write_run(tmp_path, "r", seeds=(0,))
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    (run / "config.yaml").write_text(yaml.safe_dump({**config, "format_version": 2}))
+    for checkpoint in (run / "checkpoints").iterdir():  # a layout this adarl does not know
+        for file in checkpoint.iterdir():
+            file.rename(file.with_suffix(".v2"))
+    argv = {
+        "evaluate": ["evaluate", str(run), "--episodes", "1"],
+        "export": ["export", str(run), "--out", str(tmp_path / "p.npz")],
+    }[command]
+    assert main(argv) == 2
+    err = error_line(capsys)
+    assert "written in run format 2 by a newer adarl" in err and "reads format 1" in err, err
+    assert "no complete checkpoint" not in err
+
+
+@pytest.mark.parametrize("value", ["-1", "0"])
+def test_a_length_out_of_range_names_the_range(value, tmp_path, capsys):
+    out = tmp_path / "run"
+    argv = ["train", "--preset", "smoke", "--dynamics", f"fixed:torso_length={value}"]
+    assert main([*argv, "--out", str(out), "--no-progress"]) == 2
+    err = error_line(capsys)
+    assert f"bad value '{value}' for torso_length; allowed: 0.02 to 2 " in err, err
+    assert not out.exists()
+    argv[-1] = "fixed:torso_length=5"
+    assert main([*argv, "--out", str(out), "--no-progress"]) == 2
+    assert "implausible value 5 for torso_length; allowed: 0.02 to 2 " in error_line(capsys)
