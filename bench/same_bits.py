@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 TIMING_COLUMNS = {"steps_per_s", "wall_s", "time", "seconds"}
+EXTRA_FLAGS = {"sac-fixed-rank": ["--rank", "16"]}  # what an algorithm cannot train without
 
 
 def algorithms() -> list[str]:
@@ -37,7 +38,8 @@ def train(out: Path, algos: list[str]) -> None:
     for algo in algos:
         subprocess.run(
             [sys.executable, "-m", "adarl.cli.main", "train", "--algo", algo, "--preset", "smoke"]
-            + ["--seeds", "0,3", "--out", str(out / algo), "--no-report"],
+            + ["--seeds", "0,3", "--out", str(out / algo), "--no-report"]
+            + EXTRA_FLAGS.get(algo, []),
             check=True,
         )
 
