@@ -13,7 +13,7 @@ def xla_flags(cpus: int | None = None) -> list[str]:
     Each computation runs on one thread (measured faster for these small networks), and the
     host gets one CPU device per core: XLA runs one computation at a time per device, so the
     trainer puts its lanes of seeds on different devices to update them concurrently
-    (`adarl.train.sac_loop`)."""
+    (`adarl.train.sac_learner`)."""
     cpus = max(1, cpus or os.cpu_count() or 1)
     return ["--xla_cpu_multi_thread_eigen=false", f"--xla_force_host_platform_device_count={cpus}"]
 

@@ -21,6 +21,7 @@ import os
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 from adarl.runtime import configure_xla  # noqa: E402
 
@@ -30,7 +31,7 @@ import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
 from adarl.algos import SAC_FAMILY, sac  # noqa: E402
-from adarl.train import sac_loop  # noqa: E402
+from adarl.train import loop, sac_learner  # noqa: E402
 
 
 def paper_config(algo: str, seeds: int, **overrides) -> sac.SACConfig:
@@ -49,35 +50,41 @@ def paper_config(algo: str, seeds: int, **overrides) -> sac.SACConfig:
     return sac.SACConfig(**values).validate()
 
 
-def training_rate(config: sac.SACConfig, steps: int, warmup: int) -> tuple[float, sac_loop.Run]:
+def training_rate(
+    config: sac.SACConfig, steps: int, warmup: int
+) -> tuple[float, sac_learner.SACLearner]:
     """Environment steps per second (per process) of the training loop, after `warmup` steps."""
-    tmp = tempfile.mkdtemp(prefix="adarl-bench-")
-    run = sac_loop.Run(config, tmp, progress=False)
-    run.fresh()
+    learner = sac_learner.SACLearner(config)
+    run = loop.Loop(learner, Path(tempfile.mkdtemp(prefix="adarl-bench-")), progress=False)
+    learner.fresh()
     run.open_logs(None)
 
     def advance(k):
         target = run.step + k
         while run.step < target:
-            run.train_chunk()
-            for lane in run.lanes:
+            run.step = learner.advance(run)
+            for lane in learner.lanes:
                 lane.infos.clear()
 
+    def block_until_ready():
+        for lane in learner.lanes:
+            jax.block_until_ready(lane.state)
+
     advance(warmup)
-    run.block_until_ready()
+    block_until_ready()
     start, first = time.perf_counter(), run.step
     advance(steps)
-    run.block_until_ready()
+    block_until_ready()
     rate = (run.step - first) / (time.perf_counter() - start)
-    run.close_logs()
-    return rate, run
+    run.close()
+    return rate, learner
 
 
-def truncation_cost(run: sac_loop.Run, rate: float, **config) -> tuple[float, float]:
+def truncation_cost(run: sac_learner.SACLearner, rate: float, **config) -> tuple[float, float]:
     """Seconds per truncation (one lane), and its share of the training time between two;
     `config` changes fields of the run's config for this measurement (e.g. the retain test)."""
     spec = dataclasses.replace(run.spec, config=dataclasses.replace(run.config, **config))
-    truncate = sac_loop.compile_functions(spec).truncate
+    truncate = sac_learner.compile_functions(spec).truncate
     times = []
     for _ in range(6):  # the first call compiles; the best of the other five counts
         state = jax.tree_util.tree_map(lambda a: a.copy(), run.lanes[0].state)

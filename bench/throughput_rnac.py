@@ -4,7 +4,7 @@ sets, and what double sampling costs.
     python bench/throughput_rnac.py                 # 1 seed, 20480 steps per setting
     python bench/throughput_rnac.py --steps 40960 --seeds 5
 
-Each setting runs `adarl.train.rnac_loop.train` in a temporary folder with the default (paper/original)
+Each setting runs `adarl.train.rnac_learner.train` in a temporary folder with the default (paper/original)
 hyperparameters, no evaluation and one checkpoint at the end, after a one-rollout run that compiles
 the update. Also measured in the same process: the simulator alone (random actions through
 `adarl.envs.make`). Throughputs are given per wall-clock second and per CPU second of this process
@@ -29,11 +29,11 @@ from pathlib import Path
 import numpy as np
 
 from adarl.algos import rnac
-from adarl.train import rnac_loop
+from adarl.train import rnac_learner
 from adarl.train.io import read_csv
 
 
-class CountingShadow(rnac_loop.ShadowSimulator):
+class CountingShadow(rnac_learner.ShadowSimulator):
     """The double-sampling simulator, counting the candidate transitions it simulates."""
 
     simulated = 0
@@ -66,7 +66,7 @@ def candidate_cost(task: str, steps: int, n: int = 2) -> tuple[float, float]:
     from adarl.envs import make
 
     env = make(task, dynamics="paper", seed=0)
-    shadow = rnac_loop.ShadowSimulator(env)
+    shadow = rnac_learner.ShadowSimulator(env)
     config = rnac.RNACConfig()
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     state, _ = rnac.init_states([0], config, obs_dim, act_dim)
@@ -103,10 +103,10 @@ def train_throughput(task: str, steps: int, seeds: int, **overrides) -> dict:
     config.log_every = config.rollout_steps
     with tempfile.TemporaryDirectory() as tmp:
         warm = dataclasses.replace(config, total_steps=config.rollout_steps)
-        rnac_loop.train(warm, Path(tmp) / "warm-up", progress=False)
+        rnac_learner.train(warm, Path(tmp) / "warm-up", progress=False)
         CountingShadow.simulated = 0
         wall, cpu = time.perf_counter(), time.process_time()
-        rnac_loop.train(config, Path(tmp) / "run", progress=False)
+        rnac_learner.train(config, Path(tmp) / "run", progress=False)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         episodes = len(read_csv(Path(tmp) / "run" / "episodes.csv"))
     return {
@@ -146,7 +146,7 @@ def update_seconds(seeds: int) -> float:
 
 def report(steps: int = 20480, task: str = "hopper") -> None:
     """RNAC lines for bench/throughput.py: steps/s of `ipm` and `ds`, and the DS cost factor."""
-    rnac_loop.ShadowSimulator = CountingShadow
+    rnac_learner.ShadowSimulator = CountingShadow
     rates = {}
     for name in ("ipm", "ds"):
         rates[name] = train_throughput(task, steps, 1, uncertainty_set=name)["per_seed"]
@@ -160,7 +160,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20480, help="env steps per seed per setting")
     parser.add_argument("--seeds", type=int, default=1)
     args = parser.parse_args()
-    rnac_loop.ShadowSimulator = CountingShadow
+    rnac_learner.ShadowSimulator = CountingShadow
     print(f"load average before: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
 
     sim, sim_cpu = simulator_alone(args.task, 5000)

@@ -107,7 +107,7 @@ def _adarl_label(value) -> str:
 # Table 1 order of methods in reports; other algorithms follow
 REFERENCE = "adarl"
 REPORT_ORDER = ("adarl", "adarl-control", "sac", "sac-parseval", "sac-sparse", "rnac")
-# the SAC family: configurations of adarl/algos/sac.py, trained by adarl/train/sac_loop.py
+# the SAC family: configurations of adarl/algos/sac.py, trained by adarl/train/sac_learner.py
 SAC_FAMILY: dict[str, dict] = {
     "sac": {},
     "adarl": {"bottleneck": ("actor:1", "critic:1"), "adapt_rank": True},
@@ -153,7 +153,7 @@ ALGORITHMS: dict[str, Algorithm] = {
             task_defaults=TASK_DEFAULTS.get(name, {}),
             preset_table="adarl.algos.sac:PRESETS",
             default_preset="paper",
-            trainer="adarl.train.sac_loop:train",
+            trainer="adarl.train.sac_learner:train",
             legacy_fields={"lr_schedule": "restart"},
             **SAC_FAMILY_ROLES.get(name, {}),
         )
@@ -166,7 +166,7 @@ ALGORITHMS: dict[str, Algorithm] = {
         task_defaults={},
         preset_table="adarl.algos.rnac:PRESETS",
         default_preset="default",
-        trainer="adarl.train.rnac_loop:train",
+        trainer="adarl.train.rnac_learner:train",
         best_policy=True,
     ),
 }

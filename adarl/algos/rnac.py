@@ -14,8 +14,9 @@ Follows the public PPO-based trainer (github.com/tliu1997/RNAC, `train_rnac.py`,
 
 Reads top to bottom: config and presets; networks; the maths as pure functions (GAE, clipped
 objective, IPM norm, worst-case selection); the jitted update (epochs × minibatches in
-`lax.scan`, vmapped over seeds); running normalisers; the policy export. The training loop (the
-double-sampling simulator, logs, evaluation, checkpoints) is `adarl.train.rnac_loop`.
+`lax.scan`, vmapped over seeds); running normalisers; the policy export. Its learner (the
+double-sampling simulator, the host state) is `adarl.train.rnac_learner`, trained by the one loop
+`adarl.train.loop` (logs, evaluation, checkpoints).
 Deviations from the original are listed in docs/rnac.md.
 """
 

@@ -1,8 +1,8 @@
 """Soft actor-critic in JAX, with AdaRL's rank-adaptive bottlenecks and the SAC-family baselines.
 
 Reads top to bottom: the config, the networks, the losses, the jitted update (and the rank
-truncation), the policy export. The environment loop, logging and checkpoints are in
-`adarl.train.sac_loop`. Every algorithm of the SAC family is a configuration of this file (see
+truncation), the policy export. Acting, the lanes of seeds and the truncation schedule are
+`adarl.train.sac_learner`; logging and checkpoints the one loop, `adarl.train.loop`. Every algorithm of the SAC family is a configuration of this file (see
 `adarl.algos.ALGOS`): `sac`, `adarl`, `sac-fixed-rank`, `sac-parseval`, `sac-sparse`.
 
 SAC follows Spinning Up (`spinup/algos/pytorch/sac`), which the AdaRL paper builds on:
@@ -658,66 +658,37 @@ def truncate(spec: Spec, state: dict):
     report = {}
 
     actor, actor_masks = state["actor"], state["masks"]["actor"]
+
+    def actor_with(i, layer, mask):  # the deterministic action with bottleneck i replaced
+        trunk, masks = list(actor["trunk"]), list(actor_masks)
+        trunk[i], masks[i] = layer, mask
+        return squash(spec, actor_forward(spec, dict(actor, trunk=trunk), masks, obs)[0])
+
     reference = squash(spec, actor_forward(spec, actor, actor_masks, obs)[0])
     actor_trunk, new_actor_masks = list(actor["trunk"]), list(actor_masks)
     for i, layer in enumerate(spec.actor):
-        if layer[0] != "bottleneck":
-            continue
-        p = actor["trunk"][i]
-        old = actor_masks[i].sum().astype(jnp.int32)
-        u, s, vt = rank.spectrum(p["w1"], p["w2"], actor_masks[i])
-        proposed = rank.select_rank(s, c.beta, c.rank_rule)
-        candidate = rank.next_rank(old, proposed)
-        w1, w2, m = rank.reparameterise(u, s, vt, candidate, p["w1"].dtype)
-        trial_trunk = list(actor["trunk"])
-        trial_trunk[i] = dict(p, w1=w1, w2=w2)
-        trial_masks = list(actor_masks)
-        trial_masks[i] = m
-        trial = squash(
-            spec, actor_forward(spec, dict(actor, trunk=trial_trunk), trial_masks, obs)[0]
-        )
-        error = rank.relative_error(trial, reference)
-        new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
-        if not c.apply_cuts:  # the control: the proposal is logged, the old rank kept
-            new = old
-        if c.retain_tolerance is not None or not c.apply_cuts:  # else the candidate's, as before
-            w1, w2, m = rank.reparameterise(u, s, vt, new, p["w1"].dtype)
-        actor_trunk[i], new_actor_masks[i] = dict(p, w1=w1, w2=w2), m
-        report[f"actor_{i}"] = (s, proposed, m.sum().astype(jnp.int32), candidate, error)
+        if layer[0] == "bottleneck":
+            actor_trunk[i], new_actor_masks[i], report[f"actor_{i}"] = _truncate_bottleneck(
+                c, actor["trunk"][i], actor_masks[i], functools.partial(actor_with, i), reference
+            )
 
     critic, critic_masks = state["critic"], state["masks"]["critic"]
+
+    def critics_with(i, layer, mask):  # both Q-networks' values with bottleneck i replaced
+        layers, masks = list(critic), list(critic_masks)
+        layers[i], masks[i] = layer, mask
+        return q_values(spec, layers, masks, obs, act)
+
     reference = q_values(spec, critic, critic_masks, obs, act)  # (2, samples)
     new_critic, new_critic_masks = list(critic), list(critic_masks)
     for i, layer in enumerate(spec.critic):
-        if layer[0] != "bottleneck":
-            continue
-        p = critic[i]
-        old = critic_masks[i].sum(axis=1).astype(jnp.int32)  # one rank per Q-network
-        u, s, vt = jax.vmap(rank.spectrum)(p["w1"], p["w2"], critic_masks[i])
-        proposed = jax.vmap(lambda x: rank.select_rank(x, c.beta, c.rank_rule))(s)
-        candidate = rank.next_rank(old, proposed)
-        reparam = jax.vmap(functools.partial(rank.reparameterise, dtype=p["w1"].dtype))
-        w1, w2, m = reparam(u, s, vt, candidate)
-        # both Q-networks truncated at layer i at once: each one's output depends on its own only
-        trial_layers, trial_masks = list(critic), list(critic_masks)
-        trial_layers[i] = dict(p, w1=w1, w2=w2)
-        trial_masks[i] = m
-        trial = q_values(spec, trial_layers, trial_masks, obs, act)
-        error = jax.vmap(rank.relative_error)(trial, reference)
-        new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
-        if not c.apply_cuts:
-            new = old
-        if c.retain_tolerance is not None or not c.apply_cuts:
-            w1, w2, m = reparam(u, s, vt, new)
-        new_critic[i], new_critic_masks[i] = dict(p, w1=w1, w2=w2), m
-        for q in range(2):
-            report[f"q{q + 1}_{i}"] = (
-                s[q],
-                proposed[q],
-                m[q].sum().astype(jnp.int32),
-                candidate[q],
-                error[q],
+        if layer[0] == "bottleneck":
+            # both Q-networks cut at layer i at once: each one's output depends on its own only
+            new_critic[i], new_critic_masks[i], both = _truncate_bottleneck(
+                c, critic[i], critic_masks[i], functools.partial(critics_with, i), reference, 2
             )
+            for q in range(2):
+                report[f"q{q + 1}_{i}"] = tuple(x[q] for x in both)
 
     actor = dict(actor, trunk=actor_trunk)
     state = dict(
@@ -732,6 +703,33 @@ def truncate(spec: Spec, state: dict):
         n_truncations=state["n_truncations"] + 1,
     )
     return state, report
+
+
+def _truncate_bottleneck(c: SACConfig, p: dict, mask, output_with, reference, networks=0):
+    """One bottleneck's cut (`truncate`): the SVD of W1·W2 (within `mask`), the rule's r̂,
+    the candidate r_c = max(1, min(r_old, r̂)), the retain clause on the relative change of
+    `output_with(layer, mask)` against `reference`, and W1 = U_r√Σ_r, W2 = √Σ_r V_rᵀ at the
+    chosen rank. `networks` > 0: `p` and `mask` stack that many networks' bottlenecks (the
+    critics), each cut on its own. Returns the new layer, its mask and (spectrum, r̂, new rank,
+    r_c, error), per network when stacked."""
+    each = jax.vmap if networks else (lambda f: f)
+    old = mask.sum(axis=-1).astype(jnp.int32)
+    u, s, vt = each(rank.spectrum)(p["w1"], p["w2"], mask)
+    proposed = each(lambda x: rank.select_rank(x, c.beta, c.rank_rule))(s)
+    candidate = rank.next_rank(old, proposed)
+    reparameterise = each(functools.partial(rank.reparameterise, dtype=p["w1"].dtype))
+    w1, w2, m = reparameterise(u, s, vt, candidate)
+    error = each(rank.relative_error)(output_with(dict(p, w1=w1, w2=w2), m), reference)
+    new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
+    if not c.apply_cuts:  # the control: the proposal is logged, the old rank kept
+        new = old
+    if c.retain_tolerance is not None or not c.apply_cuts:  # else the candidate's, as before
+        w1, w2, m = reparameterise(u, s, vt, new)
+    return (
+        dict(p, w1=w1, w2=w2),
+        m,
+        (s, proposed, m.sum(axis=-1).astype(jnp.int32), candidate, error),
+    )
 
 
 def bottleneck_widths(spec: Spec) -> dict[str, int]:

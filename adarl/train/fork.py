@@ -55,7 +55,7 @@ FORKABLE = (
     "on_divergence",
 )
 FIRST_TRUNCATION = "first-truncation"  # --at: the parent's first truncation step
-SAC_TRAINER = "adarl.train.sac_loop:train"
+SAC_TRAINER = "adarl.train.sac_learner:train"
 # AdaRL and its control: `apply_cuts` decides which of the two a fork is
 CONTROL_PAIR = {True: "adarl", False: "adarl-control"}
 

@@ -1,5 +1,5 @@
 """RNAC's maths (adarl.algos.rnac) against NumPy references, and bad configs (the loop:
-tests/train/test_rnac_loop.py)."""
+tests/train/test_rnac_learner.py)."""
 
 from __future__ import annotations
 

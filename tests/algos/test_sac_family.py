@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from adarl.algos import SAC_FAMILY, sac
-from adarl.train import io, sac_loop
+from adarl.train import io, sac_learner
 
-# adarl runs, crashes and resumes in tests/train/test_sac_loop.py
+# adarl runs, crashes and resumes in tests/train/test_sac_learner.py
 ALGOS = {
     "sac": {},
     "sac-fixed-rank": {"rank": 7},
@@ -38,18 +38,18 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
         **ALGOS[algo],
     }
     config = sac.SACConfig(**values)
-    original = sac_loop.Run.env_step
+    original = sac_learner.SACLearner.env_step
 
-    def crashing(self, lane, t, actions):
-        original(self, lane, t, actions)
+    def crashing(self, lane, t, actions, run):
+        original(self, lane, t, actions, run)
         if t == 300:
             raise Crash
 
-    monkeypatch.setattr(sac_loop.Run, "env_step", crashing)
+    monkeypatch.setattr(sac_learner.SACLearner, "env_step", crashing)
     with pytest.raises(Crash):
-        sac_loop.train(config, tmp_path / "run", progress=False)
-    monkeypatch.setattr(sac_loop.Run, "env_step", original)
-    sac_loop.train(config, tmp_path / "run", resume=True, progress=False)
+        sac_learner.train(config, tmp_path / "run", progress=False)
+    monkeypatch.setattr(sac_learner.SACLearner, "env_step", original)
+    sac_learner.train(config, tmp_path / "run", resume=True, progress=False)
     rows = io.read_csv(tmp_path / "run" / "train.csv")
     assert [int(r["step"]) for r in rows] == [100, 100, 200, 200, 300, 300, 400, 400]
     last = rows[-1]
@@ -67,7 +67,7 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("algo", ["sac-fixed-rank", "sac-parseval", "sac-sparse"])
 def test_runs_with_one_seed(algo, tmp_path):
-    """One seed alone (sac and adarl alone are covered in tests/train/test_sac_loop.py)."""
+    """One seed alone (sac and adarl alone are covered in tests/train/test_sac_learner.py)."""
     values = {
         **SAC_FAMILY[algo],
         **sac.PRESETS["smoke"],
@@ -82,7 +82,7 @@ def test_runs_with_one_seed(algo, tmp_path):
         "log_every": 100,
         **ALGOS[algo],
     }
-    sac_loop.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
+    sac_learner.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
     rows = io.read_csv(tmp_path / "run" / "train.csv")
     assert [int(r["step"]) for r in rows] == [100, 200]
     assert all(np.isfinite(float(r["loss_q"])) for r in rows)

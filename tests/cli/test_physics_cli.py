@@ -12,7 +12,7 @@ from adarl.errors import UsageError
 from adarl.evaluation import evaluate
 from adarl.evaluation.runs import load_run
 from adarl.sweeps import spec
-from adarl.train import io, sac_loop
+from adarl.train import io, sac_learner
 
 
 @pytest.mark.parametrize(
@@ -101,17 +101,17 @@ def test_resume_is_bit_exact_under_ompo_physics_and_v4_models(tmp_path, monkeypa
     argv += ["--checkpoint-every", "500", "--eval-every", "500", "--no-progress"]
     assert main(["train", *argv, "--out", str(tmp_path / "full")]) == 0
 
-    original = sac_loop.Run.env_step
+    original = sac_learner.SACLearner.env_step
 
-    def crashing(self, lane, t, actions):
-        original(self, lane, t, actions)
+    def crashing(self, lane, t, actions, run):
+        original(self, lane, t, actions, run)
         if t == 1_200:  # after the checkpoint at 1000, with several episodes since
             raise Crash
 
-    monkeypatch.setattr(sac_loop.Run, "env_step", crashing)
+    monkeypatch.setattr(sac_learner.SACLearner, "env_step", crashing)
     with pytest.raises(Crash):
         main(["train", *argv, "--out", str(tmp_path / "crashed")])
-    monkeypatch.setattr(sac_loop.Run, "env_step", original)
+    monkeypatch.setattr(sac_learner.SACLearner, "env_step", original)
     assert main(["train", "--resume", str(tmp_path / "crashed"), "--no-progress"]) == 0
 
     full, crashed = tmp_path / "full", tmp_path / "crashed"

@@ -11,7 +11,7 @@ import yaml
 
 from adarl.algos import SAC_FAMILY, sac
 from adarl.errors import UsageError
-from adarl.train import fork, io, sac_loop
+from adarl.train import fork, io, loop, sac_learner
 
 CSVS = ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")
 
@@ -56,7 +56,7 @@ def assert_same_arrays(a: dict, b: dict):
 @pytest.fixture(scope="module")
 def parent(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("fork") / "parent"
-    sac_loop.train(tiny(), run_dir, progress=False)
+    sac_learner.train(tiny(), run_dir, progress=False)
     return run_dir
 
 
@@ -97,7 +97,7 @@ def test_adarl_keeps_a_checkpoint_before_every_truncation(parent):
     assert kept == [f"step_{s:012d}" for s in cuts]  # none rotated away (keep_checkpoints 1)
     assert [p.name for p in io.checkpoint_dirs(parent)] == ["step_000000000800"]
     arrays, meta = io.load_checkpoint(io.checkpoint_dirs(parent, io.PRE_TRUNCATION_DIR)[0])
-    assert meta["phase"] == sac_loop.PRE_TRUNCATION and meta["step"] == 550
+    assert meta["phase"] == loop.PRE_TRUNCATION and meta["step"] == 550
     # the update metrics since the train.csv row at 500 travel with it (one chunk of 50)
     assert arrays["pending/0/loss_q"].shape == (1, 1)
     # the state before the cut: every bottleneck still at full rank
@@ -117,7 +117,7 @@ def test_a_fork_without_changes_continues_exactly_as_its_parent(parent, tmp_path
         prefix = [r for r in rows(parent, name) if int(r["step"]) <= last]
         assert rows(child, name) == prefix, name
     assert {r["step"] for r in rows(child, "eval.csv")} == {"400"}
-    sac_loop.train(planned.config, child, resume=True, progress=False)
+    sac_learner.train(planned.config, child, resume=True, progress=False)
     for name in CSVS:
         assert rows(child, name) == rows(parent, name), name
     assert_same_arrays(final_arrays(child), final_arrays(parent))
@@ -148,9 +148,9 @@ def test_the_forked_control_is_the_control_trained_from_scratch(parent, tmp_path
         "apply_cuts": {"from": True, "to": False},
     }
     fork.write(planned, forked, "")
-    sac_loop.train(planned.config, forked, resume=True, progress=False)
+    sac_learner.train(planned.config, forked, resume=True, progress=False)
     scratch = tmp_path / "scratch"
-    sac_loop.train(tiny("adarl-control"), scratch, progress=False)
+    sac_learner.train(tiny("adarl-control"), scratch, progress=False)
     for name in CSVS:
         assert rows(forked, name) == rows(scratch, name), name
     assert_same_arrays(final_arrays(forked), final_arrays(scratch))
@@ -241,7 +241,7 @@ def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkey
         tmp_path / "child"
     )
     with pytest.raises(UsageError, match="was interrupted while being made .*; fork again"):
-        sac_loop.train(planned.config, tmp_path / "child", resume=True, progress=False)
+        sac_learner.train(planned.config, tmp_path / "child", resume=True, progress=False)
 
 
 def test_forkable_fields_are_config_fields_and_the_sweeps_check_agrees():
@@ -261,6 +261,6 @@ def test_apply_cuts_false_is_only_the_control():
         tiny(apply_cuts=False).validate()
     with pytest.raises(UsageError, match="apply-cuts must be false"):
         tiny("adarl-control", apply_cuts=True).validate()
-    assert sac_loop.truncation_decision(64, 40, 64, apply_cuts=False) == "control"
-    assert sac_loop.truncation_decision(64, 64, 64, apply_cuts=False) == "unchanged"
-    assert sac_loop.truncation_decision(64, 40, 40) == "accepted"
+    assert sac_learner.truncation_decision(64, 40, 64, apply_cuts=False) == "control"
+    assert sac_learner.truncation_decision(64, 64, 64, apply_cuts=False) == "unchanged"
+    assert sac_learner.truncation_decision(64, 40, 40) == "accepted"

@@ -19,7 +19,7 @@ import yaml
 
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.cli.main import main
-from adarl.train import io, rnac_loop, sac_loop
+from adarl.train import io, rnac_learner, sac_learner
 
 HOLD = """
 import sys, time
@@ -66,7 +66,7 @@ def sac_run(tmp_path_factory) -> Path:
         **{**values, "seeds": (0, 1), "total_steps": 1000, "checkpoint_every": 500}
     )
     run_dir = tmp_path_factory.mktemp("sac") / "run"
-    sac_loop.train(config, run_dir, progress=False)
+    sac_learner.train(config, run_dir, progress=False)
     assert [p.name for p in io.checkpoint_dirs(run_dir)] == [
         "step_000000000500",
         "step_000000001000",
@@ -208,7 +208,7 @@ def test_rnac_falls_back_to_an_older_checkpoint_and_resumes_exactly(tmp_path, ca
         **{**rnac.PRESETS["smoke"], "total_steps": 512, "checkpoint_every": 256}
     )
     base = tmp_path / "base"
-    rnac_loop.train(config, base)
+    rnac_learner.train(config, base)
     run_dir = unfinished_copy(base, tmp_path / "run")
     newest = io.checkpoint_dirs(run_dir)[-1] / "arrays.npz"
     data = bytearray(newest.read_bytes())

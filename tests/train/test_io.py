@@ -241,7 +241,7 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
     it by the time the exception reaches the caller, even while the caller keeps the exception
     (and so the trainer's frames) alive, as a sweep worker or a test does."""
     from adarl.algos import SAC_FAMILY, rnac, sac
-    from adarl.train import rnac_loop, sac_loop
+    from adarl.train import rnac_learner, sac_learner
 
     def crash(run_dir):
         assert io.lock_holder(run_dir) == str(os.getpid())  # taken by then
@@ -251,9 +251,9 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
     run_dir = tmp_path / "run"
     if algo == "sac":
         values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
-        trainer, config = sac_loop.train, sac.SACConfig(**values)
+        trainer, config = sac_learner.train, sac.SACConfig(**values)
     else:
-        trainer, config = rnac_loop.train, rnac.RNACConfig(**rnac.PRESETS["smoke"])
+        trainer, config = rnac_learner.train, rnac.RNACConfig(**rnac.PRESETS["smoke"])
     with pytest.raises(Crash) as info:
         trainer(config, run_dir, progress=False)
     assert info.traceback  # kept

@@ -12,7 +12,7 @@ import pytest
 
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.errors import Diverged
-from adarl.train import io, rnac_loop, sac_loop
+from adarl.train import io, rnac_learner, sac_learner
 
 
 def poison_one(tree, value, seed_position: int = 0):
@@ -61,19 +61,19 @@ def test_sac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     values.update(log_every=400, eval_every=400, checkpoint_every=100)  # one log point: the end
     config = sac.SACConfig(**values)
     poison, words = SAC_POISON[what]
-    original = sac_loop.Run.maybe_truncate
+    original = sac_learner.SACLearner.after_update
 
-    def then_poison(self):
-        original(self)
-        if self.step == 300:  # after the update of the chunk ending at 300, before its checkpoint
+    def then_poison(self, run):
+        original(self, run)
+        if run.step == 300:  # after the update of the chunk ending at 300, before its checkpoint
             lane = self.lanes[-1]  # seed 1 (one lane per seed)
             assert [self.seeds[i] for i in lane.seeds] == [1]
             lane.state = poison(lane.state)
 
-    monkeypatch.setattr(sac_loop.Run, "maybe_truncate", then_poison)
+    monkeypatch.setattr(sac_learner.SACLearner, "after_update", then_poison)
     run_dir = tmp_path / "run"
     with pytest.raises(Diverged) as err:
-        sac_loop.train(config, run_dir, progress=False)
+        sac_learner.train(config, run_dir, progress=False)
     message = str(err.value)
     assert "diverged at step 300" in message and f"{words} (seed 1)" in message, message
     assert "last good checkpoint step_000000000200" in message, message
@@ -105,7 +105,7 @@ def test_rnac_state_gone_non_finite_between_log_points_is_never_checkpointed(
         | {"checkpoint_every": 256, "eval_every": 1024}
     )
     poison, words = RNAC_POISON[what]
-    original = rnac_loop.make_update
+    original = rnac_learner.make_update
 
     def make_update(*args, **kwargs):
         update, calls = original(*args, **kwargs), []
@@ -117,10 +117,10 @@ def test_rnac_state_gone_non_finite_between_log_points_is_never_checkpointed(
 
         return poisoned
 
-    monkeypatch.setattr(rnac_loop, "make_update", make_update)
+    monkeypatch.setattr(rnac_learner, "make_update", make_update)
     run_dir = tmp_path / "run"
     with pytest.raises(Diverged) as err:
-        rnac_loop.train(config, run_dir, progress=False)
+        rnac_learner.train(config, run_dir, progress=False)
     message = str(err.value)
     assert "diverged at step 768" in message and f"{words} (seed 1)" in message, message
     assert "last good checkpoint step_000000000512" in message, message

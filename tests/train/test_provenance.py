@@ -11,7 +11,7 @@ import pytest
 from adarl import __version__
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.evaluation import report
-from adarl.train import provenance, rnac_loop, sac_loop
+from adarl.train import provenance, rnac_learner, sac_learner
 
 ROOT = Path(provenance.__file__).resolve().parents[2]
 
@@ -112,17 +112,23 @@ def _stop(*args, **kwargs):
 
 
 def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
-    monkeypatch.setattr(sac_loop.Run, "fresh", _stop)  # stop right after the run is created
+    monkeypatch.setattr(
+        sac_learner.SACLearner, "fresh", _stop
+    )  # stop right after the run is created
     values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
     with pytest.raises(Stop):
-        sac_loop.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
+        sac_learner.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["jax"] == metadata.version("jax")
 
 
 def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
-    monkeypatch.setattr(rnac_loop, "init_states", _stop)  # stop before any JAX work
+    monkeypatch.setattr(
+        rnac_learner.RNACLearner, "fresh", _stop
+    )  # stop right after the run is created
     with pytest.raises(Stop):
-        rnac_loop.train(rnac.RNACConfig(**rnac.PRESETS["smoke"]), tmp_path / "run", progress=False)
+        rnac_learner.train(
+            rnac.RNACConfig(**rnac.PRESETS["smoke"]), tmp_path / "run", progress=False
+        )
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["mujoco"] == metadata.version("mujoco")

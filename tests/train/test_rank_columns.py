@@ -11,7 +11,7 @@ from collections import defaultdict
 import pytest
 
 from adarl.algos import SAC_FAMILY, sac
-from adarl.train import io, sac_loop
+from adarl.train import io, sac_learner
 
 
 def smoke_config(**overrides):
@@ -53,7 +53,7 @@ def expected_decision(old: int, candidate: int, new: int) -> str:
     ],
 )
 def test_truncation_decision(truncated, expected):
-    assert sac_loop.truncation_decision(*truncated) == expected
+    assert sac_learner.truncation_decision(*truncated) == expected
     assert expected_decision(*truncated) == expected
 
 
@@ -64,7 +64,7 @@ def test_a_seeds_rank_changes_only_at_its_truncations(lanes, tmp_path):
         log_every=50, eval_every=900, checkpoint_every=900, lanes=lanes,
     )  # fmt: skip
     run_dir = tmp_path / "run"
-    sac_loop.train(config, run_dir, progress=False)
+    sac_learner.train(config, run_dir, progress=False)
     cuts = io.read_csv(run_dir / "truncations.csv")
     steps = expected_truncation_steps(config)
     assert steps == [550, 650, 750, 850]
@@ -114,7 +114,7 @@ def test_a_rule_that_proposes_no_cut_is_logged_unchanged(tmp_path):
         seeds=(0,), rank_rule="ratio", beta=1e-9, truncate_every=100, total_steps=550,
         log_every=550, eval_every=550, checkpoint_every=550,
     )  # fmt: skip
-    sac_loop.train(config, tmp_path / "run", progress=False)
+    sac_learner.train(config, tmp_path / "run", progress=False)
     cuts = io.read_csv(tmp_path / "run" / "truncations.csv")
     assert len(cuts) == 3 and {r["step"] for r in cuts} == {"550"}
     width = str(config.hidden[0])

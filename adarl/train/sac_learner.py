@@ -1,4 +1,5 @@
-"""The training loop of the SAC family: several seeds in one process, vmapped.
+"""The learner of the SAC family for the training loop (`adarl.train.loop`): several seeds in
+one process.
 
 Each seed has its own environment, replay buffer, networks and RNG streams; the jitted update
 of `adarl.algos.sac` is `vmap`ped over seeds, so all seeds advance in lock-step. The host steps
@@ -17,18 +18,17 @@ taken after its update, so stepping a lane never waits behind another lane's upd
 still sees exactly Spinning Up's schedule: `update_every` steps with the current policy, then
 `update_every` updates.
 
-Writes the run folder described in docs/run-format.md and checkpoints everything needed to
-continue exactly: `train(config, run_dir, resume=True)` restores the newest complete checkpoint,
-cuts the CSV logs back to it and continues with the same results as an uninterrupted run.
+AdaRL truncates after the chunks `sac.truncation_steps` lists (the one place that says when):
+it keeps a pre-truncation checkpoint (a fork point), decomposes every bottleneck, writes
+truncations.csv and the spectra, and narrows each lane's bottlenecks to its ranks.
+`checkpoint_state` holds everything needed to continue exactly (docs/run-format.md).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import sys
-import time
 import weakref
 from io import BytesIO
 from pathlib import Path
@@ -39,9 +39,10 @@ import numpy as np
 
 from adarl.algos import replay, sac
 from adarl.errors import UsageError
-from adarl.train import io
+from adarl.train import io, loop
 from adarl.train import run_folder as rf
 
+TRUNCATIONS_CSV = "truncations.csv"
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
 # relative output error on the replay sample; decision: accepted, retained or unchanged
@@ -58,9 +59,6 @@ BASE_COLUMNS = [
     "lr",
 ]
 BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
-# meta.json `phase` of a checkpoint taken after a chunk's updates and before the truncation due
-# then: restoring it continues with that truncation (the end-of-chunk work), not a new chunk
-PRE_TRUNCATION = "pre_truncation"
 PENDING = "pending"  # arrays.npz prefix of the update metrics not yet averaged into train.csv
 
 
@@ -138,26 +136,23 @@ class Lane:
     actors: list | None = None  # host copies of the current policies; None = stale
 
 
-class Run:
-    """Host-side state of a run: environments, lanes of seeds, counters, logs; and the loop."""
+class SACLearner:
+    """Environments, lanes of seeds and the host state of a SAC-family run."""
 
-    def __init__(self, config: sac.SACConfig, run_dir: Path, progress: bool = True):
+    def __init__(self, config: sac.SACConfig):
         from adarl.envs import make
 
-        self.config = config.validate()
-        self.run_dir = Path(run_dir)
-        self.progress = progress
+        self.config = config
+        self.algo = config.algo
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
+        self.env_options = {
+            "max_episode_steps": config.max_episode_steps,
+            "physics": config.physics,
+            "version": config.model_version,
+        }
         self.envs = [  # an unknown task or dynamics fails here, before anything is written
-            make(
-                config.task,
-                dynamics=config.dynamics,
-                seed=s,
-                max_episode_steps=config.max_episode_steps,
-                physics=config.physics,
-                version=config.model_version,
-            )
+            make(config.task, dynamics=config.dynamics, seed=s, **self.env_options)
             for s in self.seeds
         ]
         space = self.envs[0].action_space
@@ -168,36 +163,41 @@ class Run:
         # lanes: 0, one lane per seed; K (run folders written before), K groups of one width
         self.shared_widths = config.lanes > 0
         self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
+        self.truncation_steps = set(sac.truncation_steps(config))
         io.check_memory(
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             f"the replay buffers ({self.n} seeds x buffer-size {config.buffer_size})",
         )
         for label in config.eval_dynamics:  # checked now, not at the first evaluation
             make(
-                config.task,
-                dynamics=label,
-                seed=0,
-                max_episode_steps=1,
-                physics=config.physics,
-                version=config.model_version,
+                config.task, dynamics=label, seed=0, **self.env_options | {"max_episode_steps": 1}
             ).close()
-        self.watch = io.DivergenceWatch(run_dir, config.on_divergence)
+        extra = []
+        if config.parseval_coef > 0:
+            extra.append("parseval_penalty")
+        if config.sparse_width:
+            extra.append("active_fraction")
+        self.train_columns = BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
 
     # ------------------------------------------------------------------ state
-    mid_chunk = False  # restored from a pre-truncation checkpoint: the end-of-chunk work is due
+    resumes_mid_step = False  # restored from a pre-truncation checkpoint: the truncation is due
 
     def fresh(self) -> None:
         states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
         self.set_lanes(jax.tree_util.tree_map(lambda *a: np.stack(a), *states))
-        self.np_rngs = [np.random.default_rng(s) for s in self.seeds]
-        self.step = 0
-        self.n_updates, self.iteration_start = 0, 0
+        self.rngs = [np.random.default_rng(s) for s in self.seeds]
         self.obs = np.zeros((self.n, self.spec.obs_dim), np.float32)
         self.ep_return = np.zeros(self.n)
         self.ep_length = np.zeros(self.n, np.int64)
         for i, env in enumerate(self.envs):
             o, _ = env.reset(seed=self.seeds[i])
             self.obs[i] = o
+        if self.config.adapt_rank and not self.truncation_steps:
+            print(
+                f"warning: total steps {self.config.total_steps} with truncate-every (d_t) "
+                f"{self.config.truncate_every} gives 0 truncations: the rank will not adapt",
+                file=sys.stderr,
+            )
 
     def set_lanes(
         self, state: dict, buffers: dict | None = None, lane_widths: list | None = None
@@ -245,10 +245,10 @@ class Run:
         (per-seed values: ranks, metrics, flags)."""
         return _concat_lanes([jax.device_get(fn(lane)) for lane in self.lanes])
 
-    def checkpoint_arrays(self) -> dict[str, np.ndarray]:
-        """Everything to continue exactly; every lane's bottlenecks stored `self.spec` wide (the
-        configured width, or a legacy run's shared width), so a seed's arrays do not depend on
-        the widths of the other seeds."""
+    def checkpoint_state(self) -> tuple[dict[str, np.ndarray], dict]:
+        """Everything to continue exactly, and meta.json's bottleneck widths; every lane's
+        bottlenecks stored `self.spec` wide (the configured width, or a legacy run's shared
+        width), so a seed's arrays do not depend on the widths of the other seeds."""
 
         def stored(lane):
             state = {k: v for k, v in lane.state.items() if k != "buffer"}
@@ -270,7 +270,12 @@ class Run:
             infos = jax.device_get(lane.infos)
             for name in infos[0] if infos else ():
                 arrays[f"{PENDING}/{k}/{name}"] = np.stack([info[name] for info in infos])
-        return arrays
+        meta = {"bottleneck_widths": sac.bottleneck_widths(self.spec)}
+        if not self.shared_widths:
+            meta["lane_bottleneck_widths"] = [
+                sac.bottleneck_widths(lane.spec) for lane in self.lanes
+            ]
+        return arrays, meta
 
     def restore(self, arrays: dict, meta: dict) -> None:
         if "host/act_keys" in arrays:
@@ -303,55 +308,27 @@ class Run:
             lane.infos = [
                 {name: arrays[f"{PENDING}/{k}/{name}"][j] for name in names} for j in range(n)
             ]
-        self.mid_chunk = meta.get("phase") == PRE_TRUNCATION
-        self.n_updates = int(state["n_updates"][0])
-        self.iteration_start = int(state["iteration_start"][0])
+        self.resumes_mid_step = meta.get("phase") == loop.PRE_TRUNCATION
         self.obs = arrays["host/obs"].astype(np.float32)
         self.ep_return = arrays["host/ep_return"].copy()
         self.ep_length = arrays["host/ep_length"].copy()
-        self.step = int(meta["step"])
-        self.np_rngs = rf.restore_rngs(meta, self.seeds)
+        self.rngs = rf.restore_rngs(meta, self.seeds)
         for env, env_state in zip(self.envs, meta["env_states"]):
             env.set_state(rf.decode_env_state(env_state, arrays))
 
-    # ------------------------------------------------------------------ logs
-    def open_logs(self, offsets: dict | None) -> None:
-        d = self.run_dir
-        if offsets:
-            for name, offset in offsets.items():
-                io.CsvLog.truncate(d / name, offset)
-        extra = []
-        if self.config.parseval_coef > 0:
-            extra.append("parseval_penalty")
-        if self.config.sparse_width:
-            extra.append("active_fraction")
-        self.logs = {
-            rf.EPISODES_CSV: io.CsvLog(
-                d / rf.EPISODES_CSV, rf.episode_columns(self.envs[0].dynamics_params or {})
-            ),
-            rf.TRAIN_CSV: io.CsvLog(
-                d / rf.TRAIN_CSV, BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
-            ),
-            rf.EVAL_CSV: io.CsvLog(d / rf.EVAL_CSV, rf.EVAL_COLUMNS),
-        }
-        if self.config.adapt_rank:
-            path = d / "truncations.csv"
-            columns = TRUNCATION_COLUMNS
-            if offsets and path.exists() and path.stat().st_size:
-                with open(path, encoding="utf-8") as f:
-                    header = f.readline().strip().split(",")
-                if sorted(header) == sorted(LEGACY_TRUNCATION_COLUMNS):  # a run from before
-                    columns = LEGACY_TRUNCATION_COLUMNS  # the retain clause: same columns
-            self.logs["truncations.csv"] = io.CsvLog(path, columns)
-        self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets else None)
-        self.recent_returns, self.last_eval = [], {}
+    def extra_logs(self, run_dir: Path, resuming: bool) -> dict[str, list[str]]:
+        """AdaRL's truncations.csv (a run from before the retain clause keeps its columns)."""
+        if not self.config.adapt_rank:
+            return {}
+        path = run_dir / TRUNCATIONS_CSV
+        if resuming and path.exists() and path.stat().st_size:
+            with open(path, encoding="utf-8") as f:
+                header = f.readline().strip().split(",")
+            if sorted(header) == sorted(LEGACY_TRUNCATION_COLUMNS):
+                return {TRUNCATIONS_CSV: LEGACY_TRUNCATION_COLUMNS}
+        return {TRUNCATIONS_CSV: TRUNCATION_COLUMNS}
 
-    def close_logs(self) -> None:
-        for log in self.logs.values():
-            log.close()
-        self.tb.close()
-
-    # ------------------------------------------------------------------ pieces of the loop
+    # ------------------------------------------------------------------ acting and learning
     def host_actors(self, lane: Lane) -> list:
         """The lane's current policies as NumPy samplers (refreshed after each update): acting
         on the host needs no device call, so it never waits behind another lane's update."""
@@ -372,17 +349,17 @@ class Run:
         if t - 1 < self.config.start_steps:
             low, high = np.asarray(self.spec.act_low), np.asarray(self.spec.act_high)
             return np.stack(
-                [self.np_rngs[i].uniform(low, high).astype(np.float32) for i in lane.seeds]
+                [self.rngs[i].uniform(low, high).astype(np.float32) for i in lane.seeds]
             )
         actors, dim = self.host_actors(lane), self.spec.act_dim
         return np.stack(
             [
-                actor.sample(self.obs[i], self.np_rngs[i].standard_normal(dim, np.float32))
+                actor.sample(self.obs[i], self.rngs[i].standard_normal(dim, np.float32))
                 for actor, i in zip(actors, lane.seeds)
             ]
         )
 
-    def env_step(self, lane: Lane, t: int, actions: np.ndarray) -> None:
+    def env_step(self, lane: Lane, t: int, actions: np.ndarray, run: loop.Loop) -> None:
         """Environment step `t` of the lane's seeds; rows go to the lane's chunk builder."""
         for j, i in enumerate(lane.seeds):
             env = self.envs[i]
@@ -392,19 +369,7 @@ class Run:
             done = terminated or truncated
             lane.builder.add(j, self.obs[i], actions[j], reward, terminated, next_obs, done)
             if done:
-                row = {
-                    "step": t,
-                    "seed": self.seeds[i],
-                    "episode": int(info["episode_index"]),
-                    "return": float(self.ep_return[i]),
-                    "length": int(self.ep_length[i]),
-                }
-                row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
-                self.logs[rf.EPISODES_CSV].write(row)
-                self.tb.write(t, {rf.tb_episode_return(self.seeds[i]): self.ep_return[i]})
-                self.recent_returns.append(float(self.ep_return[i]))
-                if not math.isfinite(self.ep_return[i]):
-                    self.watch.note("episode return", [self.seeds[i]])
+                run.episode_done(i, t, info, self.ep_return[i], self.ep_length[i])
                 self.ep_return[i], self.ep_length[i] = 0.0, 0
                 next_obs, _ = env.reset()
             self.obs[i] = next_obs
@@ -423,26 +388,31 @@ class Run:
             lane.state, _ = lane.fns.collect(lane.state, rows, n_rows)
         lane.builder.clear()
 
-    def train_chunk(self) -> None:
+    def advance(self, run: loop.Loop) -> int:
         """Advance every lane to the end of the current chunk of `update_every` steps: step a
-        lane's environments, start its update, go on to the next lane."""
+        lane's environments, start its update, go on to the next lane. Returns the new step."""
         c = self.config
-        end = min((self.step // c.update_every + 1) * c.update_every, c.total_steps)
+        end = min((run.step // c.update_every + 1) * c.update_every, c.total_steps)
         update = end >= c.update_after
         for lane in self.lanes:
-            for t in range(self.step + 1, end + 1):
-                self.env_step(lane, t, self.choose_actions(lane, t))
+            for t in range(run.step + 1, end + 1):
+                self.env_step(lane, t, self.choose_actions(lane, t), run)
             self.end_chunk(lane, update)
-        if update:
-            self.n_updates += c.update_every
-        self.step = end
+        return end
 
-    def maybe_truncate(self) -> None:
+    def after_update(self, run: loop.Loop) -> None:
+        """AdaRL's truncation, at the steps `sac.truncation_steps` gives: a pre-truncation
+        checkpoint (unless restored from it), every bottleneck decomposed and cut (Eq. 5 and the
+        retain clause, `sac.truncate`), truncations.csv and the spectra written, and each lane
+        narrowed to its ranks."""
         c = self.config
-        if not c.adapt_rank or self.n_updates - self.iteration_start < c.truncate_every:
+        if run.step not in self.truncation_steps:
             return
-        if c.checkpoint_before_truncation and not self.mid_chunk:
-            self.save_before_truncation()
+        if c.checkpoint_before_truncation and not self.resumes_mid_step:
+            finite = self.gather(lambda lane: _finite_parameters(lane.state))
+            if all(np.all(ok) for ok in finite.values()) and not run.watch.found:
+                run.save(phase=loop.PRE_TRUNCATION)  # never with non-finite parameters
+        self.resumes_mid_step = False
         old = self.gather(_ranks)
         reports = []
         full = _layer_widths(self.spec)
@@ -454,19 +424,16 @@ class Run:
                 report[name] = (_pad_last(s, full[name]), *rest)
             reports.append(report)
         report = _concat_lanes(reports)
-        self.iteration_start = self.n_updates
         spectra = {name: np.asarray(item[0]) for name, item in report.items()}
         buf = BytesIO()
         np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
-        io.atomic_write_bytes(
-            self.run_dir / "spectra" / f"step_{self.step:012d}.npz", buf.getvalue()
-        )
+        io.atomic_write_bytes(run.run_dir / "spectra" / f"step_{run.step:012d}.npz", buf.getvalue())
         rows = []
         for name, (_, proposed, new, candidate, error) in report.items():
             for i, seed in enumerate(self.seeds):
                 rows.append(
                     {
-                        "step": self.step,
+                        "step": run.step,
                         "seed": seed,
                         "layer": name,
                         "old_rank": int(old[name][i]),
@@ -479,7 +446,7 @@ class Run:
                         ),
                     }
                 )
-        log = self.logs["truncations.csv"]
+        log = run.logs[TRUNCATIONS_CSV]
         log.write([{k: row[k] for k in log.columns} for row in rows])
         if c.compact_bottlenecks:
             self.narrow_bottlenecks(self.gather(_ranks))
@@ -502,9 +469,12 @@ class Run:
         if self.shared_widths:
             self.spec = self.lanes[0].spec
 
-    def write_train_log(self, steps_per_s: float) -> None:
+    # ------------------------------------------------------------------ what the loop reads
+    def train_rows(self, step: int, steps_per_s: float, watch) -> list[dict]:
+        """One train.csv row per seed: the update metrics averaged since the last rows, the
+        ranks and diagnostics (none before the first update)."""
         if not self.lanes[0].infos:
-            return
+            return []
         per_lane = []
         for lane in self.lanes:
             infos = jax.device_get(lane.infos)
@@ -512,13 +482,13 @@ class Run:
             per_lane.append({k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]})
         mean = _concat_lanes(per_lane)
         for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
-            self.watch.note_values(key, self.seeds, mean[key])
+            watch.note_values(key, self.seeds, mean[key])
         ranks = self.gather(_ranks)
         diag = self.gather(lambda lane: lane.fns.diagnostics(lane.state))
         rows = []
         for i, seed in enumerate(self.seeds):
             row = {
-                "step": self.step,
+                "step": step,
                 "seed": seed,
                 "steps_per_s": steps_per_s,
                 "loss_q": mean["loss_q"][i],
@@ -534,13 +504,10 @@ class Run:
                 row["active_fraction"] = diag["active_fraction"][i]
             row.update({f"rank_{n}": int(ranks[n][i]) for n in self.layer_names})
             rows.append(row)
-            self.tb.write(
-                self.step,
-                {rf.tb_train(k, seed): v for k, v in row.items() if k not in ("step", "seed")},
-            )
-        self.logs[rf.TRAIN_CSV].write(rows)
+        return rows
 
-    def export_policies(self) -> list[dict]:
+    def policies(self) -> list[dict]:
+        """Each seed's deterministic policy (its actor's arrays, bottlenecks compacted)."""
         policies = []
         for lane in self.lanes:
             actor = jax.device_get(lane.state["actor"])
@@ -551,122 +518,10 @@ class Run:
             ]
         return policies
 
-    def evaluate(self) -> None:
-        from adarl.envs.rollout import run_episodes
-        from adarl.policy import NumpyPolicy
-
-        c = self.config
-        for i, arrays in enumerate(self.export_policies()):
-            policy = NumpyPolicy(arrays)
-            for label in c.eval_dynamics:
-                rows = run_episodes(
-                    policy,
-                    c.task,
-                    label,
-                    c.eval_episodes,
-                    seed=1_000_000 + self.seeds[i],
-                    max_episode_steps=c.max_episode_steps,
-                    physics=c.physics,
-                    version=c.model_version,
-                )
-                self.logs[rf.EVAL_CSV].write(rf.eval_rows(self.step, self.seeds[i], label, rows))
-                mean_return = float(np.mean([r["return"] for r in rows]))
-                self.tb.write(self.step, {rf.tb_eval_return(label, self.seeds[i]): mean_return})
-                self.last_eval[self.seeds[i]] = mean_return
-
-    def save_before_truncation(self) -> None:
-        """Keep the state just before the truncation that is due (a fork point, docs/run-format.md);
-        skipped when something is already non-finite, as a regular checkpoint would refuse it."""
-        finite = self.gather(lambda lane: _finite_parameters(lane.state))
-        if all(np.all(ok) for ok in finite.values()) and not self.watch.found:
-            self.save(phase=PRE_TRUNCATION)
-
-    def save(self, phase: str | None = None) -> None:
-        """A checkpoint of everything; `phase` PRE_TRUNCATION: one kept in
-        checkpoints/pre_truncation/ (never rotated), taken before the end-of-chunk work."""
-        from adarl.policy import to_bytes
-
-        arrays = self.checkpoint_arrays()
-        meta = rf.checkpoint_meta(
-            self.config.algo,
-            self.config,
-            self.seeds,
-            self.np_rngs,
-            rf.encode_env_states(self.envs, arrays),
-            {name: log.offset() for name, log in self.logs.items()},
-        )
-        meta["bottleneck_widths"] = sac.bottleneck_widths(self.spec)
-        if phase is not None:
-            meta["phase"] = phase
-        if not self.shared_widths:
-            meta["lane_bottleneck_widths"] = [
-                sac.bottleneck_widths(lane.spec) for lane in self.lanes
-            ]
-        policies = {
-            f"policy_seed_{seed}.npz": to_bytes(arrays)
-            for seed, arrays in zip(self.seeds, self.export_policies())
-        }
-        rf.save_checkpoint(
-            self.run_dir,
-            self.step,
-            arrays,
-            meta,
-            keep=0 if phase == PRE_TRUNCATION else self.config.keep_checkpoints,
-            files=policies,
-            folder=rf.PRE_TRUNCATION_DIR if phase == PRE_TRUNCATION else rf.CHECKPOINT_DIR,
-        )
-
-    def check_divergence(self) -> None:
-        """Stop the run (or warn once) on non-finite parameters, returns or logged losses."""
+    def note_divergence(self, watch, step: int) -> None:
         for name, ok in self.gather(lambda lane: _finite_parameters(lane.state)).items():
-            self.watch.note(name, [s for s, o in zip(self.seeds, ok) if not o])
-        self.watch.note_values("episode return", self.seeds, self.ep_return)
-        self.watch.check(self.step)
-
-    def block_until_ready(self) -> None:
-        for lane in self.lanes:
-            jax.block_until_ready(lane.state)
-
-    # ------------------------------------------------------------------ the loop
-    def end_chunk_work(self) -> None:
-        """What follows a chunk's updates: the truncation that is due, then the train.csv row,
-        the evaluation and the checkpoint that fall on this step. A run restored from a
-        pre-truncation checkpoint starts here."""
-        c = self.config
-        self.maybe_truncate()
-        self.mid_chunk = False
-        t = self.step  # a chunk boundary: every `*_every` is a multiple of update_every
-        if t % c.log_every == 0 or t == c.total_steps:
-            now = time.perf_counter()
-            t_log, s_log = self.clock
-            rate = (t - s_log) / max(now - t_log, 1e-9)
-            self.write_train_log(rate)
-            self.check_divergence()
-            self.clock = now, t
-        if t % c.eval_every == 0 or t == c.total_steps:
-            self.evaluate()
-        if t % c.checkpoint_every == 0 or t == c.total_steps:
-            self.check_divergence()  # never checkpoint non-finite parameters
-            self.save()
-
-    def loop(self) -> None:
-        c = self.config
-        bar = _progress(c.total_steps, self.step, self.progress)
-        self.clock = time.perf_counter(), self.step  # (time, step) of the last train.csv row
-        if self.mid_chunk:
-            self.end_chunk_work()
-        while self.step < c.total_steps:
-            self.train_chunk()
-            self.end_chunk_work()
-            if bar is not None:
-                recent = self.recent_returns[-10 * self.n :]
-                bar.set_postfix_str(
-                    f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False
-                )
-                bar.update(self.step - bar.n)
-        if bar is not None:
-            bar.close()
-        rf.finish(self.run_dir, self.step)
+            watch.note(name, [s for s, o in zip(self.seeds, ok) if not o])
+        watch.note_values("episode return", self.seeds, self.ep_return)
 
 
 def truncation_decision(
@@ -733,16 +588,6 @@ def _take(tree, i: int | slice):
     return jax.tree_util.tree_map(lambda a: a[i], tree)
 
 
-def _progress(total: int, start: int, enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(
-        total=total, initial=start, unit="step", dynamic_ncols=True, file=sys.stderr, smoothing=0.05
-    )
-
-
 def train(
     config: sac.SACConfig,
     run_dir: str | Path,
@@ -750,49 +595,5 @@ def train(
     progress: bool = True,
     command: str = "",
 ) -> Path:
-    """Train (or resume) a SAC-family run into `run_dir`; returns the run folder. The run
-    folder's lock is held from the first write to the end (docs/reliability.md)."""
-    run_dir = Path(run_dir)
-    with io.RunLock(run_dir) as lock:
-        _train(config, run_dir, resume, progress, command, lock)
-    return run_dir
-
-
-def _train(config, run_dir: Path, resume: bool, progress: bool, command: str, lock) -> None:
-    if resume:
-        opened = rf.open_to_resume(run_dir, lock, config)
-        if opened is None:  # complete
-            return
-        run = Run(config, run_dir, progress)
-        _, arrays, meta = opened
-        if meta is not None:
-            run.restore(arrays, meta)
-            run.open_logs(rf.csv_offsets(meta))
-        elif rf.load_config(run_dir).get("fork"):  # its first checkpoint is written last
-            raise UsageError(
-                f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
-            )
-        else:  # killed before its first checkpoint: start again, keeping nothing half-done
-            run.fresh()
-            run.open_logs(
-                {
-                    name: 0
-                    for name in (rf.EPISODES_CSV, rf.TRAIN_CSV, rf.EVAL_CSV, "truncations.csv")
-                }
-            )
-    else:
-        io.check_new_run_dir(run_dir)
-        run = Run(config, run_dir, progress)
-        rf.start_new(run_dir, lock, config, config.algo, command)
-        run.fresh()
-        run.open_logs(None)
-        if config.adapt_rank and sac.n_truncations(config) == 0:
-            print(
-                f"warning: total steps {config.total_steps} with truncate-every (d_t) "
-                f"{config.truncate_every} gives 0 truncations: the rank will not adapt",
-                file=sys.stderr,
-            )
-    try:
-        run.loop()
-    finally:
-        run.close_logs()
+    """Train (or resume) a SAC-family run into `run_dir` (`adarl.train.loop.train`)."""
+    return loop.train(SACLearner, config, run_dir, resume, progress, command)

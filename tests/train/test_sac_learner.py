@@ -14,7 +14,7 @@ import pytest
 
 from adarl.algos import SAC_FAMILY, sac
 from adarl.errors import UsageError
-from adarl.train import io, sac_loop
+from adarl.train import io, sac_learner
 
 
 def smoke_config(algo="adarl", **overrides):
@@ -51,7 +51,7 @@ def test_pendulum_learns_for_every_seed(tmp_path):
         log_every=2_000,
         checkpoint_every=10_000,
     )
-    sac_loop.train(config, tmp_path / "run", progress=False)
+    sac_learner.train(config, tmp_path / "run", progress=False)
     rows = io.read_csv(tmp_path / "run" / "eval.csv")
     for seed in (0, 1):
         returns = [float(r["return"]) for r in rows if int(r["seed"]) == seed]
@@ -76,7 +76,7 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
     config = smoke_config(
         seeds=(0, 1, 2), total_steps=2_000, checkpoint_every=1_000, **rank_settings
     )
-    sac_loop.train(config, tmp_path / "full", progress=False)
+    sac_learner.train(config, tmp_path / "full", progress=False)
     cuts = io.read_csv(tmp_path / "full" / "truncations.csv")
     assert len(cuts) == sac.n_truncations(config) * 3 * 3  # truncations × layers × seeds
     decisions = {row["decision"] for row in cuts}
@@ -84,19 +84,19 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
     if "retain_tolerance" in rank_settings:  # the retain clause refuses some of the cuts
         assert "retained" in decisions and "accepted" in decisions
 
-    original = sac_loop.Run.env_step
+    original = sac_learner.SACLearner.env_step
 
-    def crashing(self, lane, t, actions):
-        original(self, lane, t, actions)
+    def crashing(self, lane, t, actions, run):
+        original(self, lane, t, actions, run)
         if t == 1_600:  # after the checkpoint at 1000 and a truncation
             raise Crash
 
-    monkeypatch.setattr(sac_loop.Run, "env_step", crashing)
+    monkeypatch.setattr(sac_learner.SACLearner, "env_step", crashing)
     with pytest.raises(Crash):
-        sac_loop.train(config, tmp_path / "crashed", progress=False)
-    monkeypatch.setattr(sac_loop.Run, "env_step", original)
+        sac_learner.train(config, tmp_path / "crashed", progress=False)
+    monkeypatch.setattr(sac_learner.SACLearner, "env_step", original)
     assert not (tmp_path / "crashed" / "DONE").exists()
-    sac_loop.train(config, tmp_path / "crashed", resume=True, progress=False)
+    sac_learner.train(config, tmp_path / "crashed", resume=True, progress=False)
 
     for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv"):
         assert csv_rows(tmp_path / "full", name) == csv_rows(tmp_path / "crashed", name), name
@@ -109,15 +109,15 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
 
 
 def test_split_lanes():
-    assert sac_loop.split_lanes(5, 4) == [range(0, 2), range(2, 3), range(3, 4), range(4, 5)]
-    assert sac_loop.split_lanes(5, 2) == [range(0, 3), range(3, 5)]
-    assert sac_loop.split_lanes(2, 4) == [range(0, 1), range(1, 2)]
-    assert sac_loop.split_lanes(1, 4) == [range(0, 1)]
-    assert sac_loop.split_lanes(8, 3) == [range(0, 3), range(3, 6), range(6, 8)]
+    assert sac_learner.split_lanes(5, 4) == [range(0, 2), range(2, 3), range(3, 4), range(4, 5)]
+    assert sac_learner.split_lanes(5, 2) == [range(0, 3), range(3, 5)]
+    assert sac_learner.split_lanes(2, 4) == [range(0, 1), range(1, 2)]
+    assert sac_learner.split_lanes(1, 4) == [range(0, 1)]
+    assert sac_learner.split_lanes(8, 3) == [range(0, 3), range(3, 6), range(6, 8)]
 
 
 def test_lanes_hold_their_seeds_on_separate_devices(tmp_path):
-    run = sac_loop.Run(smoke_config(seeds=(4, 7, 9), lanes=2), tmp_path / "run", progress=False)
+    run = sac_learner.SACLearner(smoke_config(seeds=(4, 7, 9), lanes=2))
     run.fresh()
     assert [lane.seeds for lane in run.lanes] == [range(0, 2), range(2, 3)]
     assert [lane.state["buffer"]["obs"].shape[0] for lane in run.lanes] == [2, 1]
@@ -126,7 +126,7 @@ def test_lanes_hold_their_seeds_on_separate_devices(tmp_path):
     for lane in run.lanes:
         assert lane.state["actor"]["mu"]["w"].devices() == {lane.device}
     # the checkpoint stacks the lanes back in seed order, exactly as they were initialised
-    arrays = run.checkpoint_arrays()
+    arrays, _ = run.checkpoint_state()
     expected = [
         sac.init_state(run.spec, s, with_buffer=False)["actor"]["mu"]["w"] for s in (4, 7, 9)
     ]
@@ -142,10 +142,10 @@ def test_a_seed_gives_the_same_bits_alone_and_among_other_seeds(tmp_path):
     seed): seed 3 trained alone and trained beside 0, 5 and 6 (whose ranks, and so bottleneck
     widths, differ from its own after the truncations) are bit-identical."""
     config = smoke_config(total_steps=1_500, checkpoint_every=500, rank_rule="cumulative")
-    sac_loop.train(
+    sac_learner.train(
         dataclasses.replace(config, seeds=(0, 3, 5, 6)), tmp_path / "all", progress=False
     )
-    sac_loop.train(dataclasses.replace(config, seeds=(3,)), tmp_path / "alone", progress=False)
+    sac_learner.train(dataclasses.replace(config, seeds=(3,)), tmp_path / "alone", progress=False)
     together, alone = tmp_path / "all", tmp_path / "alone"
     for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv"):
         assert seed_rows(together, name, 3) == seed_rows(alone, name, 3), name
@@ -176,18 +176,18 @@ def test_a_legacy_layout_still_vmaps_its_lanes(tmp_path):
     """Run folders written before record `lanes: K`: K vmapped groups sharing one width, which
     they keep so that they resume exactly (seeds 0 and 3 share a lane there and drift apart
     from seed 0 alone, as they always did)."""
-    run = sac_loop.Run(smoke_config(seeds=(0, 3, 5), lanes=2), tmp_path / "run", progress=False)
+    run = sac_learner.SACLearner(smoke_config(seeds=(0, 3, 5), lanes=2))
     run.fresh()
     assert [lane.seeds for lane in run.lanes] == [range(0, 2), range(2, 3)]
     assert run.shared_widths
-    assert not sac_loop.Run(smoke_config(seeds=(0, 3)), tmp_path / "new", False).shared_widths
+    assert not sac_learner.SACLearner(smoke_config(seeds=(0, 3))).shared_widths
 
 
 def test_new_run_refuses_a_non_empty_folder(tmp_path):
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "notes.txt").write_text("keep me")
     with pytest.raises(UsageError, match="already exists"):
-        sac_loop.train(smoke_config(), tmp_path / "run", progress=False)
+        sac_learner.train(smoke_config(), tmp_path / "run", progress=False)
     assert (tmp_path / "run" / "notes.txt").read_text() == "keep me"
 
 
@@ -255,10 +255,10 @@ def test_checkpoint_holds_only_the_used_part_of_the_buffer(tmp_path):
     config = smoke_config(
         algo="sac", total_steps=1_000, checkpoint_every=1_000, buffer_size=100_000
     )
-    sac_loop.train(config, tmp_path / "run", progress=False)
+    sac_learner.train(config, tmp_path / "run", progress=False)
     arrays = final_arrays(tmp_path / "run")
     # the rows written (1000 steps, plus one row per episode end) and the provisional next row
     used = int(arrays["buffer/size"].max()) + 1
     assert 1_000 < used < 2_000
-    for key in sac_loop.BUFFER_ROW_KEYS:
+    for key in sac_learner.BUFFER_ROW_KEYS:
         assert arrays[f"buffer/{key}"].shape[1] == used, key

@@ -1,0 +1,330 @@
+"""The one training loop of every algorithm (the shape of Stable-Baselines3's `learn`: the loop
+owns the run, the algorithm supplies a small learner).
+
+The loop owns what every algorithm does alike: starting a run folder or resuming it from its
+newest intact checkpoint (under the run's lock), the CSV and TensorBoard logs and the progress
+bar, the triggers (`log_every`, `eval_every`, `checkpoint_every` and the end), the evaluation
+(seed 1,000,000 + s), each seed's best policy by nominal evaluation return, the checkpoint
+(arrays, meta.json, policy files), the divergence watch and the teardown.
+
+A learner (`adarl.train.sac_learner`, `adarl.train.rnac_learner`) owns its algorithm's state
+and how it acts and learns. It has:
+
+    algo, config, seeds, envs, rngs    one environment and NumPy generator per seed
+    env_options                        `envs.make` keywords of its environments (evaluation too)
+    train_columns                      train.csv's columns
+    extra_logs(run_dir, resuming)      more CSV logs, file name -> columns (e.g. truncations.csv)
+    fresh()                            initial state; resets the environments
+    restore(arrays, meta)              the state of a checkpoint
+    resumes_mid_step                   True if restored between an update and its step's end
+    advance(loop) -> step              act and learn up to the next step the loop must look at,
+                                       calling loop.episode_done for every finished episode
+    after_update(loop)                 what follows the update before the step's logs
+    train_rows(steps_per_s, watch)     train.csv rows since the last ones (may be empty)
+    policies()                         each seed's policy arrays (adarl.policy)
+    checkpoint_state() -> arrays, meta everything else needed to continue exactly
+    note_divergence(watch, step)       non-finite parameters, optimiser states, metrics
+
+Adding an on-policy algorithm (PPO, say) is a learner like RNAC's: its rollout buffer and
+normalisers in `advance`, its jitted update when the rollout is full (docs/algorithms.md).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from adarl.errors import UsageError
+from adarl.train import io
+from adarl.train import run_folder as rf
+
+# meta.json `phase` of a checkpoint taken after a step's update and before the rest of that
+# step's work (a truncation): restoring it continues with that work, not a new step
+PRE_TRUNCATION = "pre_truncation"
+LOGS = (rf.EPISODES_CSV, rf.TRAIN_CSV, rf.EVAL_CSV)
+
+
+class BestPolicies:
+    """Each seed's best policy by mean nominal evaluation return, kept beside the final one (as
+    RNAC's original keeps its best model). Every checkpoint stores it (`best_policy_seed_<s>.npz`
+    and meta.json's `best`), so a resumed run selects exactly as an uninterrupted one; a run
+    resumed from a checkpoint written before it kept them records the step it began
+    (`from_step`)."""
+
+    METRIC = "mean nominal evaluation return"
+
+    def __init__(self, seeds, from_step: int = 0):
+        self.seeds = [int(s) for s in seeds]
+        self.from_step = int(from_step)
+        self.record: dict[int, dict] = {}  # seed -> {"step": …, "return": …}
+        self.files: dict[int, bytes] = {}  # seed -> the policy file's bytes
+
+    def offer(self, seed: int, step: int, mean_return: float, policy: dict) -> None:
+        """Keep `policy` if its finite `mean_return` beats the seed's best so far (ties: the
+        earlier one)."""
+        from adarl.policy import to_bytes
+
+        best = self.record.get(seed)
+        if math.isfinite(mean_return) and (best is None or mean_return > best["return"]):
+            self.record[seed] = {"step": int(step), "return": float(mean_return)}
+            self.files[seed] = to_bytes(policy)
+
+    def meta(self) -> dict:
+        seeds = {str(s): self.record[s] for s in self.seeds if s in self.record}
+        meta = {"metric": self.METRIC, "dynamics": "nominal", "seeds": seeds}
+        return meta | ({"from_step": self.from_step} if self.from_step else {})
+
+    def checkpoint_files(self) -> dict[str, bytes]:
+        return {f"best_policy_seed_{s}.npz": self.files[s] for s in self.seeds if s in self.files}
+
+    def restore(self, meta: dict, checkpoint: Path) -> None:
+        """Read the best back from a checkpoint (none recorded: keep from the checkpoint's step)."""
+        if "best" not in meta:
+            self.from_step = int(meta["step"])
+            return
+        self.from_step = int(meta["best"].get("from_step", 0))
+        for key, record in (meta["best"].get("seeds") or {}).items():
+            path = Path(checkpoint) / f"best_policy_seed_{int(key)}.npz"
+            try:
+                self.files[int(key)] = path.read_bytes()
+            except OSError:
+                raise UsageError(
+                    f"checkpoint {checkpoint} has no {path.name}, which its meta.json lists"
+                ) from None
+            self.record[int(key)] = {"step": int(record["step"]), "return": float(record["return"])}
+
+
+def train(make_learner, config, run_dir, resume: bool, progress: bool, command: str) -> Path:
+    """Train (or resume) a run of `config` into `run_dir` with the learner `make_learner(config)`;
+    returns the run folder. The run folder's lock is held from the first write to the end
+    (docs/reliability.md)."""
+    run_dir = Path(run_dir)
+    config.validate()
+    with io.RunLock(run_dir) as lock:
+        if resume:
+            opened = rf.open_to_resume(run_dir, lock, config)
+            if opened is None:  # complete
+                return run_dir
+            path, arrays, meta = opened
+            if meta is None and rf.load_config(run_dir).get("fork"):  # written first at last
+                raise UsageError(
+                    f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
+                )
+            loop = Loop(make_learner(config), run_dir, progress)
+            if meta is None:  # killed before its first checkpoint: start again, nothing half-done
+                loop.learner.fresh()
+                loop.open_logs({name: 0 for name in loop.log_names(resuming=True)})
+            else:
+                loop.restore(path, arrays, meta)
+        else:
+            io.check_new_run_dir(run_dir)
+            learner = make_learner(config)  # unknown tasks or dynamics fail before any write
+            rf.start_new(run_dir, lock, config, learner.algo, command)
+            loop = Loop(learner, run_dir, progress)
+            learner.fresh()
+            loop.open_logs(None)
+        try:
+            loop.run()
+        finally:
+            loop.close()
+    return run_dir
+
+
+class Loop:
+    """A run in progress: its learner, step, logs, best policies and divergence watch."""
+
+    def __init__(self, learner, run_dir: Path, progress: bool):
+        self.learner, self.config = learner, learner.config
+        self.run_dir, self.progress = run_dir, progress
+        self.seeds = list(learner.seeds)
+        self.step = 0
+        self.best = BestPolicies(self.seeds)
+        self.watch = io.DivergenceWatch(run_dir, self.config.on_divergence)
+        self.logs, self.tb, self.recent_returns = {}, None, []
+
+    def restore(self, path: Path, arrays: dict, meta: dict) -> None:
+        self.step = int(meta["step"])
+        self.learner.restore(arrays, meta)
+        self.best.restore(meta, path)
+        self.open_logs(rf.csv_offsets(meta))
+
+    # ------------------------------------------------------------------ logs
+    def log_names(self, resuming: bool) -> list[str]:
+        return [*LOGS, *self.learner.extra_logs(self.run_dir, resuming)]
+
+    def open_logs(self, offsets: dict | None) -> None:
+        """Open the CSV and TensorBoard logs; resuming (`offsets`: file name -> byte offset of
+        the checkpoint), first cut each CSV back to what the checkpoint had seen."""
+        d = self.run_dir
+        for name, offset in (offsets or {}).items():
+            io.CsvLog.truncate(d / name, offset)
+        params = self.learner.envs[0].dynamics_params or {}
+        columns = {
+            rf.EPISODES_CSV: rf.episode_columns(params),
+            rf.TRAIN_CSV: self.learner.train_columns,
+            rf.EVAL_CSV: rf.EVAL_COLUMNS,
+            **self.learner.extra_logs(d, offsets is not None),
+        }
+        self.logs = {name: io.CsvLog(d / name, cols) for name, cols in columns.items()}
+        self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets is not None else None)
+
+    def close(self) -> None:
+        for log in self.logs.values():
+            log.close()
+        if self.tb is not None:
+            self.tb.close()
+        for env in self.learner.envs:
+            env.close()
+
+    def episode_done(self, i: int, step: int, info: dict, ep_return: float, length: int) -> None:
+        """Log the episode of seed position `i` that ended at environment step `step`."""
+        seed = self.seeds[i]
+        row = {
+            "step": step,
+            "seed": seed,
+            "episode": int(info["episode_index"]),
+            "return": float(ep_return),
+            "length": int(length),
+        }
+        row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
+        self.logs[rf.EPISODES_CSV].write(row)
+        self.tb.write(step, {rf.tb_episode_return(seed): ep_return})
+        self.recent_returns.append(float(ep_return))
+        if not math.isfinite(ep_return):
+            self.watch.note("episode return", [seed])
+
+    # ------------------------------------------------------------------ the step's work
+    def write_train_rows(self, steps_per_s: float) -> None:
+        rows = self.learner.train_rows(self.step, steps_per_s, self.watch)
+        for row in rows:
+            self.tb.write(
+                self.step,
+                {
+                    rf.tb_train(k, row["seed"]): v
+                    for k, v in row.items()
+                    if k not in ("step", "seed") and math.isfinite(v)
+                },
+            )
+        if rows:
+            self.logs[rf.TRAIN_CSV].write(rows)
+
+    def evaluate(self) -> None:
+        """Every seed's policy on every evaluation dynamics, `eval_episodes` episodes from seed
+        1,000,000 + s; the nominal return is offered to the seed's best policies."""
+        from adarl.envs.rollout import run_episodes
+        from adarl.policy import NumpyPolicy
+
+        c = self.config
+        for seed, arrays in zip(self.seeds, self.learner.policies()):
+            policy = NumpyPolicy(arrays)
+            for label in c.eval_dynamics:
+                rows = run_episodes(
+                    policy,
+                    c.task,
+                    label,
+                    c.eval_episodes,
+                    seed=1_000_000 + seed,
+                    **self.learner.env_options,
+                )
+                self.logs[rf.EVAL_CSV].write(rf.eval_rows(self.step, seed, label, rows))
+                mean_return = float(np.mean([r["return"] for r in rows]))
+                self.tb.write(self.step, {rf.tb_eval_return(label, seed): mean_return})
+                if label == "nominal":
+                    self.best.offer(seed, self.step, mean_return, arrays)
+
+    def check_divergence(self) -> None:
+        """Stop the run (or warn once) on non-finite parameters, optimiser states, metrics or
+        returns (docs/reliability.md)."""
+        self.learner.note_divergence(self.watch, self.step)
+        self.watch.check(self.step)
+
+    def save(self, phase: str | None = None) -> None:
+        """A checkpoint of everything; `phase` PRE_TRUNCATION: one kept in
+        checkpoints/pre_truncation/ (never rotated), taken before the rest of the step's work."""
+        from adarl.policy import to_bytes
+
+        arrays, extra = self.learner.checkpoint_state()
+        meta = rf.checkpoint_meta(
+            self.learner.algo,
+            self.config,
+            self.seeds,
+            self.learner.rngs,
+            rf.encode_env_states(self.learner.envs, arrays),
+            {name: log.offset() for name, log in self.logs.items()},
+        )
+        meta.update(extra)
+        meta["best"] = self.best.meta()
+        if phase is not None:
+            meta["phase"] = phase
+        files = {
+            f"policy_seed_{seed}.npz": to_bytes(policy)
+            for seed, policy in zip(self.seeds, self.learner.policies())
+        }
+        files.update(self.best.checkpoint_files())
+        rf.save_checkpoint(
+            self.run_dir,
+            self.step,
+            arrays,
+            meta,
+            keep=0 if phase == PRE_TRUNCATION else self.config.keep_checkpoints,
+            files=files,
+            folder=rf.PRE_TRUNCATION_DIR if phase == PRE_TRUNCATION else rf.CHECKPOINT_DIR,
+        )
+
+    def end_of_step(self) -> None:
+        """What follows the learner's update at a step the loop looks at: the learner's own
+        work (a truncation), then the train.csv rows, the evaluation and the checkpoint due at
+        this step (every `*_every`, and at the end). A run restored from a pre-truncation
+        checkpoint starts here."""
+        c, t = self.config, self.step
+        self.learner.after_update(self)
+        if t % c.log_every == 0 or t == c.total_steps:
+            now = time.perf_counter()
+            t_log, s_log = self.clock
+            self.write_train_rows((t - s_log) / max(now - t_log, 1e-9))
+            self.check_divergence()
+            self.clock = now, t
+        if t % c.eval_every == 0 or t == c.total_steps:
+            self.evaluate()
+        if t % c.checkpoint_every == 0 or t == c.total_steps:
+            self.check_divergence()  # never checkpoint non-finite parameters
+            self.save()
+
+    def run(self) -> None:
+        c = self.config
+        bar = _progress(c.total_steps, self.step, self.progress, f"{self.learner.algo} {c.task}")
+        self.clock = time.perf_counter(), self.step  # (time, step) of the last train.csv rows
+        if self.learner.resumes_mid_step:
+            self.end_of_step()
+        while self.step < c.total_steps:
+            self.step = self.learner.advance(self)
+            self.end_of_step()
+            recent = self.recent_returns = self.recent_returns[-10 * len(self.seeds) :]
+            if bar is not None and (self.step - bar.n >= 256 or self.step == c.total_steps):
+                bar.set_postfix_str(
+                    f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False
+                )
+                bar.update(self.step - bar.n)
+        if bar is not None:
+            bar.close()
+        rf.finish(self.run_dir, self.step)
+
+
+def _progress(total: int, start: int, enabled: bool, desc: str):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total,
+        initial=start,
+        unit="step",
+        dynamic_ncols=True,
+        file=sys.stderr,
+        smoothing=0.05,
+        desc=desc,
+    )

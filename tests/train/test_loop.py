@@ -1,0 +1,79 @@
+"""The one training loop (adarl/train/loop.py): what it does alike for every learner — when it
+logs, evaluates and checkpoints, and each seed's best policy."""
+
+import json
+
+import numpy as np
+import pytest
+
+from adarl.algos import rnac, sac
+from adarl.algos.registry import SAC_FAMILY
+from adarl.policy import to_bytes
+from adarl.train import io, loop, rnac_learner, sac_learner
+
+
+def sac_config(**overrides):
+    values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    return sac.SACConfig(**{**values, **overrides})
+
+
+# (trainer, config, the steps of train.csv rows, of evaluations): the multiples of log_every
+# and eval_every, and the last step, which is neither
+CASES = {
+    "sac": (
+        sac_learner.train,
+        sac_config(seeds=(0, 1), total_steps=1_050, log_every=500, eval_every=500),
+        [500, 1_000, 1_050],
+        [500, 1_000, 1_050],
+    ),
+    "rnac": (
+        rnac_learner.train,
+        rnac.RNACConfig(
+            **rnac.PRESETS["smoke"]
+            | {"seeds": (0, 1), "total_steps": 1_280, "log_every": 512, "eval_every": 1_024}
+        ),
+        [512, 1_024, 1_280],
+        [1_024, 1_280],
+    ),
+}
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_logs_evaluations_and_best_policies_alike_for_every_learner(name, tmp_path):
+    train, config, train_steps, eval_steps = CASES[name]
+    run_dir = train(config, tmp_path / "run", progress=False)
+    rows = io.read_csv(run_dir / "train.csv")
+    assert sorted({int(r["step"]) for r in rows}) == train_steps
+    evals = io.read_csv(run_dir / "eval.csv")
+    assert sorted({int(r["step"]) for r in evals}) == eval_steps
+    assert (run_dir / "DONE").read_text().strip() == str(config.total_steps)
+
+    last = io.latest_checkpoint(run_dir)
+    best = json.loads((last / "meta.json").read_text())["best"]
+    assert best["metric"] == "mean nominal evaluation return" and "from_step" not in best
+    for seed in config.seeds:
+        mine = [r for r in evals if r["seed"] == str(seed) and r["dynamics"] == "nominal"]
+        by_step = {}
+        for r in mine:
+            by_step.setdefault(int(r["step"]), []).append(float(r["return"]))
+        means = {step: np.mean(v) for step, v in by_step.items()}
+        top = max(means, key=lambda s: (means[s], -s))  # the first of equal maxima
+        assert best["seeds"][str(seed)]["step"] == top
+        assert best["seeds"][str(seed)]["return"] == pytest.approx(means[top], rel=1e-5)
+        assert (last / f"best_policy_seed_{seed}.npz").is_file()
+
+
+def test_a_checkpoint_from_before_best_policies_records_where_they_begin(tmp_path):
+    spec = sac.make_spec(sac_config(), 11, 3, -np.ones(3), np.ones(3))
+    policies = []
+    for seed in (0, 1):
+        state = sac.init_state(spec, seed, with_buffer=False)
+        policies.append(sac.export_policy(spec, state["actor"], state["masks"]["actor"]))
+    best = loop.BestPolicies([0, 1])
+    best.restore({"step": 600_000}, tmp_path)  # a meta.json written before the loop kept them
+    assert best.meta()["from_step"] == 600_000 and best.meta()["seeds"] == {}
+    best.offer(0, 650_000, 12.5, policies[0])
+    best.offer(0, 700_000, float("nan"), policies[1])  # never a non-finite return
+    best.offer(0, 750_000, 12.5, policies[1])  # a tie keeps the earlier
+    assert best.meta()["seeds"] == {"0": {"step": 650_000, "return": 12.5}}
+    assert best.checkpoint_files() == {"best_policy_seed_0.npz": to_bytes(policies[0])}
