@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 from adarl.errors import UsageError
+from adarl.files import atomic_write_json
 from adarl.sweeps.spec import Sweep
-from adarl.train.io import atomic_write_json
 
 FILE = "manifest.json"
 FORMAT_VERSION = 1

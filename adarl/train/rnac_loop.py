@@ -36,8 +36,28 @@ from adarl.algos.rnac import (
     welford,
 )
 from adarl.errors import UsageError
-from adarl.train import io
-from adarl.train import run_folder as rf
+from adarl.runs import checkpoints, folder
+from adarl.runs.codec import decode_env_state, encode_env_states, flatten_tree, unflatten_tree
+from adarl.runs.layout import (
+    EPISODES_CSV,
+    EVAL_CSV,
+    TB_DIR,
+    TRAIN_CSV,
+    best_policy_file_name,
+    policy_file_name,
+)
+from adarl.runs.lock import RunLock
+from adarl.runs.logs import (
+    EVAL_COLUMNS,
+    CsvLog,
+    Scalars,
+    episode_columns,
+    eval_rows,
+    tb_episode_return,
+    tb_eval_return,
+    tb_train,
+)
+from adarl.train.guards import DivergenceWatch
 
 
 # ============================================================================ double sampling
@@ -130,12 +150,12 @@ class BestPolicies:
         return {"metric": self.METRIC, "dynamics": "nominal", "seeds": seeds}
 
     def checkpoint_files(self) -> dict[str, bytes]:
-        return {f"best_policy_seed_{s}.npz": self.files[s] for s in self.seeds if s in self.files}
+        return {best_policy_file_name(s): self.files[s] for s in self.seeds if s in self.files}
 
     def restore(self, meta: dict, checkpoint: Path) -> None:
         """Read the best back from a checkpoint (none recorded: start empty)."""
         for key, record in ((meta.get("best") or {}).get("seeds") or {}).items():
-            path = Path(checkpoint) / f"best_policy_seed_{int(key)}.npz"
+            path = Path(checkpoint) / best_policy_file_name(int(key))
             try:
                 self.files[int(key)] = path.read_bytes()
             except OSError:
@@ -239,7 +259,7 @@ def train(
     (docs/run-format.md). With `resume`, continue from its newest intact checkpoint (or start
     again if it was killed before the first one). `command` is recorded in config.yaml. The run
     folder's lock is held from the first write to the end (docs/reliability.md)."""
-    with io.RunLock(run_dir) as lock:
+    with RunLock(run_dir) as lock:
         _train(config, Path(run_dir), resume, progress, command, lock)
 
 
@@ -257,18 +277,18 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
     envs.parse_dynamics(config.dynamics, config.task)
     for spec in config.eval_dynamics:
         envs.parse_dynamics(spec, config.task)
-    csv_names = (rf.EPISODES_CSV, rf.TRAIN_CSV, rf.EVAL_CSV)
+    csv_names = (EPISODES_CSV, TRAIN_CSV, EVAL_CSV)
     if resume:
-        opened = rf.open_to_resume(run_dir, lock, config)
+        opened = folder.open_to_resume(run_dir, lock, config)
         if opened is None:  # complete
             return
         ckpt_path, ckpt_arrays, meta = opened
         resume = meta is not None  # killed before its first checkpoint: start again
         if not resume:
             for name in csv_names:
-                io.CsvLog.truncate(run_dir / name, 0)
+                CsvLog.truncate(run_dir / name, 0)
     else:
-        rf.start_new(run_dir, lock, config, "rnac", command)
+        folder.start_new(run_dir, lock, config, "rnac", command)
 
     # --- environments, one per seed, and the double-sampling simulators
     seeds = [int(s) for s in config.seeds]
@@ -289,21 +309,21 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
     best = BestPolicies(seeds)
 
     if resume:
-        state = io.unflatten_tree(state, ckpt_arrays, "state")
+        state = unflatten_tree(state, ckpt_arrays, "state")
         update_keys = ckpt_arrays["update_keys"]
         for f in dataclasses.fields(Host):
             if ckpt_arrays[f"host/{f.name}"].shape != getattr(host, f.name).shape:
                 raise UsageError(f"checkpoint array host/{f.name} does not match this config")
             setattr(host, f.name, ckpt_arrays[f"host/{f.name}"].copy())
         step = int(meta["step"])
-        for rng, s in zip(rngs, rf.rng_states(meta)):
+        for rng, s in zip(rngs, checkpoints.rng_states(meta)):
             rng.bit_generator.state = s
         for env, s, enc in zip(env_list, seeds, meta["env_states"]):
             env.reset(seed=s)
-            env.set_state(rf.decode_env_state(enc, ckpt_arrays))
-        offsets = rf.csv_offsets(meta)
+            env.set_state(decode_env_state(enc, ckpt_arrays))
+        offsets = checkpoints.csv_offsets(meta)
         for name in csv_names:
-            io.CsvLog.truncate(run_dir / name, offsets[name])
+            CsvLog.truncate(run_dir / name, offsets[name])
         best.restore(meta, ckpt_path)
         param_names = list(env_list[0].dynamics_params)
     else:
@@ -315,16 +335,16 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
     if step >= config.total_steps:
         for env in env_list:
             env.close()
-        rf.finish(run_dir, step)
+        folder.finish(run_dir, step)
         return
     params = host_params(state)  # NumPy (actor, critic) per seed for the rollout
 
     logs = {
-        rf.EPISODES_CSV: io.CsvLog(run_dir / rf.EPISODES_CSV, rf.episode_columns(param_names)),
-        rf.TRAIN_CSV: io.CsvLog(run_dir / rf.TRAIN_CSV, TRAIN_COLUMNS),
-        rf.EVAL_CSV: io.CsvLog(run_dir / rf.EVAL_CSV, rf.EVAL_COLUMNS),
+        EPISODES_CSV: CsvLog(run_dir / EPISODES_CSV, episode_columns(param_names)),
+        TRAIN_CSV: CsvLog(run_dir / TRAIN_CSV, TRAIN_COLUMNS),
+        EVAL_CSV: CsvLog(run_dir / EVAL_CSV, EVAL_COLUMNS),
     }
-    tb = io.Scalars(run_dir / "tb", purge_step=step if (run_dir / "tb").exists() else None)
+    tb = Scalars(run_dir / TB_DIR, purge_step=step if (run_dir / TB_DIR).exists() else None)
     bar = tqdm(
         total=config.total_steps,
         initial=step,
@@ -354,34 +374,32 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
                 rows = run_episodes(
                     policy, config.task, spec, config.eval_episodes, 1_000_000 + s, **options
                 )
-                logs[rf.EVAL_CSV].write(rf.eval_rows(step, s, spec, rows))
+                logs[EVAL_CSV].write(eval_rows(step, s, spec, rows))
                 mean_return = float(np.mean([r["return"] for r in rows]))
-                tb.write(step, {rf.tb_eval_return(spec, s): mean_return})
+                tb.write(step, {tb_eval_return(spec, s): mean_return})
                 if spec == "nominal":
                     best.offer(s, step, mean_return, policy.arrays)
 
     def checkpoint():
-        arrays = io.flatten_tree(state, "state")
+        arrays = flatten_tree(state, "state")
         arrays["update_keys"] = np.asarray(update_keys)
         arrays.update({f"host/{f.name}": getattr(host, f.name) for f in dataclasses.fields(Host)})
-        meta = rf.checkpoint_meta(
+        meta = checkpoints.checkpoint_meta(
             "rnac",
             config,
             seeds,
             rngs,
-            rf.encode_env_states(env_list, arrays),
+            encode_env_states(env_list, arrays),
             {name: logs[name].offset() for name in csv_names},
         )
         meta["best"] = best.meta()
-        policies = {
-            f"policy_seed_{s}.npz": policy_bytes(seed_policy(i)) for i, s in enumerate(seeds)
-        }
+        policies = {policy_file_name(s): policy_bytes(seed_policy(i)) for i, s in enumerate(seeds)}
         policies.update(best.checkpoint_files())
-        rf.save_checkpoint(
+        checkpoints.save_checkpoint(
             run_dir, step, arrays, meta, keep=config.keep_checkpoints, files=policies
         )
 
-    watch = io.DivergenceWatch(run_dir, config.on_divergence)
+    watch = DivergenceWatch(run_dir, config.on_divergence)
 
     def check_divergence():
         """Non-finite update metrics (once there was an update), parameters, optimiser states
@@ -439,8 +457,8 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
                         "length": host.ep_length[i],
                     }
                     row.update({f"p_{p}": info["dynamics"][p] for p in param_names})
-                    logs[rf.EPISODES_CSV].write(row)
-                    tb.write(step, {rf.tb_episode_return(seeds[i]): host.ep_return[i]})
+                    logs[EPISODES_CSV].write(row)
+                    tb.write(step, {tb_episode_return(seeds[i]): host.ep_return[i]})
                     recent_return[i] = host.ep_return[i]
                     if not math.isfinite(host.ep_return[i]):
                         watch.note("episode return", [seeds[i]])
@@ -475,13 +493,11 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
                 last_log = (step, now)
                 for i, s in enumerate(seeds):
                     scalars = dict(zip(METRICS, host.metrics[i].tolist()))
-                    logs[rf.TRAIN_CSV].write(
-                        {"step": step, "seed": s, "steps_per_s": sps, **scalars}
-                    )
+                    logs[TRAIN_CSV].write({"step": step, "seed": s, "steps_per_s": sps, **scalars})
                     tb.write(
                         step,
-                        {rf.tb_train(n, s): v for n, v in scalars.items() if not math.isnan(v)}
-                        | {rf.tb_train("steps_per_s", s): sps},
+                        {tb_train(n, s): v for n, v in scalars.items() if not math.isnan(v)}
+                        | {tb_train("steps_per_s", s): sps},
                     )
                 check_divergence()
             if config.eval_episodes and step % config.eval_every == 0:
@@ -493,7 +509,7 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
                 bar.update(step - bar.n)
                 if not np.isnan(recent_return).all():
                     bar.set_postfix(ret=f"{np.nanmean(recent_return):.0f}", refresh=False)
-        rf.finish(run_dir, step)
+        folder.finish(run_dir, step)
     finally:
         bar.close()
         tb.close()

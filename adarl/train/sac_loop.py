@@ -39,8 +39,34 @@ import numpy as np
 
 from adarl.algos import replay, sac
 from adarl.errors import UsageError
-from adarl.train import io
-from adarl.train import run_folder as rf
+from adarl.files import atomic_write_bytes
+from adarl.runs import checkpoints, folder
+from adarl.runs.codec import decode_env_state, encode_env_states, flatten_tree, unflatten_tree
+from adarl.runs.layout import (
+    CHECKPOINT_DIR,
+    EPISODES_CSV,
+    EVAL_CSV,
+    PRE_TRUNCATION,
+    PRE_TRUNCATION_DIR,
+    SPECTRA_DIR,
+    TB_DIR,
+    TRAIN_CSV,
+    TRUNCATIONS_CSV,
+    policy_file_name,
+    spectrum_file,
+)
+from adarl.runs.lock import RunLock
+from adarl.runs.logs import (
+    EVAL_COLUMNS,
+    CsvLog,
+    Scalars,
+    episode_columns,
+    eval_rows,
+    tb_episode_return,
+    tb_eval_return,
+    tb_train,
+)
+from adarl.train.guards import DivergenceWatch, check_memory
 
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
@@ -60,7 +86,6 @@ BASE_COLUMNS = [
 BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
 # meta.json `phase` of a checkpoint taken after a chunk's updates and before the truncation due
 # then: restoring it continues with that truncation (the end-of-chunk work), not a new chunk
-PRE_TRUNCATION = "pre_truncation"
 PENDING = "pending"  # arrays.npz prefix of the update metrics not yet averaged into train.csv
 
 
@@ -168,7 +193,7 @@ class Run:
         # lanes: 0, one lane per seed; K (run folders written before), K groups of one width
         self.shared_widths = config.lanes > 0
         self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
-        io.check_memory(
+        check_memory(
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             f"the replay buffers ({self.n} seeds x buffer-size {config.buffer_size})",
         )
@@ -181,7 +206,7 @@ class Run:
                 physics=config.physics,
                 version=config.model_version,
             ).close()
-        self.watch = io.DivergenceWatch(run_dir, config.on_divergence)
+        self.watch = DivergenceWatch(run_dir, config.on_divergence)
 
     # ------------------------------------------------------------------ state
     mid_chunk = False  # restored from a pre-truncation checkpoint: the end-of-chunk work is due
@@ -255,7 +280,7 @@ class Run:
             return state if lane.spec == self.spec else sac.resize_bottlenecks(self.spec, state)
 
         state = self.gather(stored)
-        arrays = io.flatten_tree(state, "state")
+        arrays = flatten_tree(state, "state")
         bufs = [jax.device_get(lane.state["buffer"]) for lane in self.lanes]
         # only the rows written so far (plus the provisional one) are worth saving
         used = int(min(bufs[0]["obs"].shape[1], max(int(np.max(b["size"])) for b in bufs) + 1))
@@ -284,7 +309,7 @@ class Run:
         template = jax.tree_util.tree_map(
             lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
         )
-        state = io.unflatten_tree(template, arrays, "state")
+        state = unflatten_tree(template, arrays, "state")
         expected = {"obs": (self.spec.obs_dim,), "act": (self.spec.act_dim,)}
         buffers = {}
         for k in BUFFER_ROW_KEYS:
@@ -310,40 +335,40 @@ class Run:
         self.ep_return = arrays["host/ep_return"].copy()
         self.ep_length = arrays["host/ep_length"].copy()
         self.step = int(meta["step"])
-        self.np_rngs = rf.restore_rngs(meta, self.seeds)
+        self.np_rngs = checkpoints.restore_rngs(meta, self.seeds)
         for env, env_state in zip(self.envs, meta["env_states"]):
-            env.set_state(rf.decode_env_state(env_state, arrays))
+            env.set_state(decode_env_state(env_state, arrays))
 
     # ------------------------------------------------------------------ logs
     def open_logs(self, offsets: dict | None) -> None:
         d = self.run_dir
         if offsets:
             for name, offset in offsets.items():
-                io.CsvLog.truncate(d / name, offset)
+                CsvLog.truncate(d / name, offset)
         extra = []
         if self.config.parseval_coef > 0:
             extra.append("parseval_penalty")
         if self.config.sparse_width:
             extra.append("active_fraction")
         self.logs = {
-            rf.EPISODES_CSV: io.CsvLog(
-                d / rf.EPISODES_CSV, rf.episode_columns(self.envs[0].dynamics_params or {})
+            EPISODES_CSV: CsvLog(
+                d / EPISODES_CSV, episode_columns(self.envs[0].dynamics_params or {})
             ),
-            rf.TRAIN_CSV: io.CsvLog(
-                d / rf.TRAIN_CSV, BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
+            TRAIN_CSV: CsvLog(
+                d / TRAIN_CSV, BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
             ),
-            rf.EVAL_CSV: io.CsvLog(d / rf.EVAL_CSV, rf.EVAL_COLUMNS),
+            EVAL_CSV: CsvLog(d / EVAL_CSV, EVAL_COLUMNS),
         }
         if self.config.adapt_rank:
-            path = d / "truncations.csv"
+            path = d / TRUNCATIONS_CSV
             columns = TRUNCATION_COLUMNS
             if offsets and path.exists() and path.stat().st_size:
                 with open(path, encoding="utf-8") as f:
                     header = f.readline().strip().split(",")
                 if sorted(header) == sorted(LEGACY_TRUNCATION_COLUMNS):  # a run from before
                     columns = LEGACY_TRUNCATION_COLUMNS  # the retain clause: same columns
-            self.logs["truncations.csv"] = io.CsvLog(path, columns)
-        self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets else None)
+            self.logs[TRUNCATIONS_CSV] = CsvLog(path, columns)
+        self.tb = Scalars(d / TB_DIR, purge_step=self.step if offsets else None)
         self.recent_returns, self.last_eval = [], {}
 
     def close_logs(self) -> None:
@@ -400,8 +425,8 @@ class Run:
                     "length": int(self.ep_length[i]),
                 }
                 row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
-                self.logs[rf.EPISODES_CSV].write(row)
-                self.tb.write(t, {rf.tb_episode_return(self.seeds[i]): self.ep_return[i]})
+                self.logs[EPISODES_CSV].write(row)
+                self.tb.write(t, {tb_episode_return(self.seeds[i]): self.ep_return[i]})
                 self.recent_returns.append(float(self.ep_return[i]))
                 if not math.isfinite(self.ep_return[i]):
                     self.watch.note("episode return", [self.seeds[i]])
@@ -458,9 +483,7 @@ class Run:
         spectra = {name: np.asarray(item[0]) for name, item in report.items()}
         buf = BytesIO()
         np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
-        io.atomic_write_bytes(
-            self.run_dir / "spectra" / f"step_{self.step:012d}.npz", buf.getvalue()
-        )
+        atomic_write_bytes(self.run_dir / SPECTRA_DIR / spectrum_file(self.step), buf.getvalue())
         rows = []
         for name, (_, proposed, new, candidate, error) in report.items():
             for i, seed in enumerate(self.seeds):
@@ -479,7 +502,7 @@ class Run:
                         ),
                     }
                 )
-        log = self.logs["truncations.csv"]
+        log = self.logs[TRUNCATIONS_CSV]
         log.write([{k: row[k] for k in log.columns} for row in rows])
         if c.compact_bottlenecks:
             self.narrow_bottlenecks(self.gather(_ranks))
@@ -536,9 +559,9 @@ class Run:
             rows.append(row)
             self.tb.write(
                 self.step,
-                {rf.tb_train(k, seed): v for k, v in row.items() if k not in ("step", "seed")},
+                {tb_train(k, seed): v for k, v in row.items() if k not in ("step", "seed")},
             )
-        self.logs[rf.TRAIN_CSV].write(rows)
+        self.logs[TRAIN_CSV].write(rows)
 
     def export_policies(self) -> list[dict]:
         policies = []
@@ -569,9 +592,9 @@ class Run:
                     physics=c.physics,
                     version=c.model_version,
                 )
-                self.logs[rf.EVAL_CSV].write(rf.eval_rows(self.step, self.seeds[i], label, rows))
+                self.logs[EVAL_CSV].write(eval_rows(self.step, self.seeds[i], label, rows))
                 mean_return = float(np.mean([r["return"] for r in rows]))
-                self.tb.write(self.step, {rf.tb_eval_return(label, self.seeds[i]): mean_return})
+                self.tb.write(self.step, {tb_eval_return(label, self.seeds[i]): mean_return})
                 self.last_eval[self.seeds[i]] = mean_return
 
     def save_before_truncation(self) -> None:
@@ -587,12 +610,12 @@ class Run:
         from adarl.policy import to_bytes
 
         arrays = self.checkpoint_arrays()
-        meta = rf.checkpoint_meta(
+        meta = checkpoints.checkpoint_meta(
             self.config.algo,
             self.config,
             self.seeds,
             self.np_rngs,
-            rf.encode_env_states(self.envs, arrays),
+            encode_env_states(self.envs, arrays),
             {name: log.offset() for name, log in self.logs.items()},
         )
         meta["bottleneck_widths"] = sac.bottleneck_widths(self.spec)
@@ -603,17 +626,17 @@ class Run:
                 sac.bottleneck_widths(lane.spec) for lane in self.lanes
             ]
         policies = {
-            f"policy_seed_{seed}.npz": to_bytes(arrays)
+            policy_file_name(seed): to_bytes(arrays)
             for seed, arrays in zip(self.seeds, self.export_policies())
         }
-        rf.save_checkpoint(
+        checkpoints.save_checkpoint(
             self.run_dir,
             self.step,
             arrays,
             meta,
             keep=0 if phase == PRE_TRUNCATION else self.config.keep_checkpoints,
             files=policies,
-            folder=rf.PRE_TRUNCATION_DIR if phase == PRE_TRUNCATION else rf.CHECKPOINT_DIR,
+            folder=PRE_TRUNCATION_DIR if phase == PRE_TRUNCATION else CHECKPOINT_DIR,
         )
 
     def check_divergence(self) -> None:
@@ -666,7 +689,7 @@ class Run:
                 bar.update(self.step - bar.n)
         if bar is not None:
             bar.close()
-        rf.finish(self.run_dir, self.step)
+        folder.finish(self.run_dir, self.step)
 
 
 def truncation_decision(
@@ -753,37 +776,34 @@ def train(
     """Train (or resume) a SAC-family run into `run_dir`; returns the run folder. The run
     folder's lock is held from the first write to the end (docs/reliability.md)."""
     run_dir = Path(run_dir)
-    with io.RunLock(run_dir) as lock:
+    with RunLock(run_dir) as lock:
         _train(config, run_dir, resume, progress, command, lock)
     return run_dir
 
 
 def _train(config, run_dir: Path, resume: bool, progress: bool, command: str, lock) -> None:
     if resume:
-        opened = rf.open_to_resume(run_dir, lock, config)
+        opened = folder.open_to_resume(run_dir, lock, config)
         if opened is None:  # complete
             return
         run = Run(config, run_dir, progress)
         _, arrays, meta = opened
         if meta is not None:
             run.restore(arrays, meta)
-            run.open_logs(rf.csv_offsets(meta))
-        elif rf.load_config(run_dir).get("fork"):  # its first checkpoint is written last
+            run.open_logs(checkpoints.csv_offsets(meta))
+        elif folder.load_config(run_dir).get("fork"):  # its first checkpoint is written last
             raise UsageError(
                 f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
             )
         else:  # killed before its first checkpoint: start again, keeping nothing half-done
             run.fresh()
             run.open_logs(
-                {
-                    name: 0
-                    for name in (rf.EPISODES_CSV, rf.TRAIN_CSV, rf.EVAL_CSV, "truncations.csv")
-                }
+                {name: 0 for name in (EPISODES_CSV, TRAIN_CSV, EVAL_CSV, TRUNCATIONS_CSV)}
             )
     else:
-        io.check_new_run_dir(run_dir)
+        folder.check_new_run_dir(run_dir)
         run = Run(config, run_dir, progress)
-        rf.start_new(run_dir, lock, config, config.algo, command)
+        folder.start_new(run_dir, lock, config, config.algo, command)
         run.fresh()
         run.open_logs(None)
         if config.adapt_rank and sac.n_truncations(config) == 0:

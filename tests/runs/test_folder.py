@@ -14,8 +14,9 @@ import pytest
 
 from adarl.algos import registry
 from adarl.cli.main import main
-from adarl.train import run_folder
-from adarl.train.io import read_csv
+from adarl.runs import checkpoints, folder
+from adarl.runs.codec import decode_env_state, encode_env_state
+from adarl.runs.logs import read_csv
 
 OLD = Path(__file__).parent.parent / "data" / "run-format-1"
 
@@ -48,7 +49,7 @@ def _same_rows(a: list[dict], b: list[dict]) -> bool:
 
 @pytest.mark.parametrize(("name", "algo"), [("sac-family", "adarl"), ("rnac", "rnac")])
 def test_old_run_config_loads(name, algo):
-    got_algo, config = run_folder.config_from_run(OLD / name)
+    got_algo, config = folder.config_from_run(OLD / name)
     assert got_algo == algo
     assert config.seeds == (0, 1) and config.hidden == (16, 16)
     assert isinstance(config, registry.get(algo).config_class)
@@ -103,22 +104,22 @@ def test_env_state_codec_round_trip():
         "d": {"x": None, "y": "text", "z": np.float64(0.5)},
     }
     arrays: dict = {}
-    encoded = run_folder.encode_env_state(state, arrays, "env/0")
+    encoded = encode_env_state(state, arrays, "env/0")
     json.dumps(encoded)  # meta.json-able
-    back = run_folder.decode_env_state(json.loads(json.dumps(encoded)), arrays)
+    back = decode_env_state(json.loads(json.dumps(encoded)), arrays)
     assert isinstance(back["t"], tuple) and back["t"][1] == 2 and back["d"] == state["d"]
     np.testing.assert_array_equal(back["a"], state["a"])
     assert back["t"][2][0].dtype == np.float32 and sorted(arrays) == ["env/0/a", "env/0/t/2/0"]
     # the SAC loop's encoding of run format 1: arrays inline in meta.json
     old = {"a": {"__ndarray__": [1.0, 2.0], "dtype": "float32"}, "b": [1, 2]}
-    legacy = run_folder.decode_env_state(old, {})
+    legacy = decode_env_state(old, {})
     assert legacy["a"].dtype == np.float32 and legacy["b"] == [1, 2]
 
 
 def test_legacy_meta_keys():
-    assert run_folder.rng_states({"np_rngs": [1]}) == [1]
-    assert run_folder.rng_states({"rng_states": [2], "np_rngs": [1]}) == [2]
-    offsets = run_folder.csv_offsets({"csv_offsets": {"episodes": 3, "train.csv": 4}})
+    assert checkpoints.rng_states({"np_rngs": [1]}) == [1]
+    assert checkpoints.rng_states({"rng_states": [2], "np_rngs": [1]}) == [2]
+    offsets = checkpoints.csv_offsets({"csv_offsets": {"episodes": 3, "train.csv": 4}})
     assert offsets == {"episodes.csv": 3, "train.csv": 4}
 
 
@@ -127,7 +128,7 @@ def test_config_yaml_round_trips_through_the_registry(algo, tmp_path):
     flags = {"seeds": "0-2", **({"rank": "7"} if "rank" in registry.field_names(algo) else {})}
     config = registry.resolve_config(algo, "smoke", flags)
     tmp_path.joinpath("run").mkdir()
-    run_folder.write_config(tmp_path / "run", config, algo, "adarl train …")
-    record = run_folder.load_config(tmp_path / "run")
+    folder.write_config(tmp_path / "run", config, algo, "adarl train …")
+    record = folder.load_config(tmp_path / "run")
     assert record["algo"] == algo and record["command"] == "adarl train …"
-    assert run_folder.config_from_run(tmp_path / "run") == (algo, config)
+    assert folder.config_from_run(tmp_path / "run") == (algo, config)
