@@ -39,26 +39,34 @@ RESUMABLE_EDITS = (
 
 
 # ---------------------------------------------------------------------------- config.yaml
-def config_yaml(config, extra: dict | None = None) -> str:
-    """`config`'s fields (tuples as lists) then `extra`, as YAML."""
-    values = {
+def config_values(config) -> dict:
+    """`config`'s fields as config.yaml holds them (tuples as lists)."""
+    return {
         k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()
     }
-    values.update(extra or {})
-    return yaml.safe_dump(values, sort_keys=False)
+
+
+def config_yaml(config, extra: dict | None = None) -> str:
+    """`config`'s fields then `extra`, as YAML."""
+    return yaml.safe_dump({**config_values(config), **(extra or {})}, sort_keys=False)
 
 
 def write_config(run_dir: Path, config, algo: str, command: str, fork: dict | None = None) -> None:
     """config.yaml of a new run: `algo`, every config field, the format and adarl versions, the
     command that started it and, for a fork, where it came from (`fork`, docs/run-format.md)."""
-    record = {"format_version": RUN_FORMAT_VERSION, "adarl_version": __version__}
-    record["command"] = command or " ".join(sys.argv)
+    values = {} if hasattr(config, "algo") else {"algo": algo}
+    values.update(config_values(config))
+    values.update(format_version=RUN_FORMAT_VERSION, adarl_version=__version__)
+    values["command"] = command or " ".join(sys.argv)
     if fork is not None:
-        record["fork"] = fork
-    text = config_yaml(config, record)
-    if not hasattr(config, "algo"):
-        text = yaml.safe_dump({"algo": algo}, sort_keys=False) + text
-    atomic_write_text(Path(run_dir) / CONFIG_FILE, text)
+        values["fork"] = fork
+    write_config_values(run_dir, values)
+
+
+def write_config_values(run_dir: str | os.PathLike, values: dict) -> None:
+    """config.yaml holding `values` in their order (`write_config` builds them for a trainer's
+    config; the synthetic runs of adarl.evaluation.synthetic give their own)."""
+    atomic_write_text(Path(run_dir) / CONFIG_FILE, yaml.safe_dump(values, sort_keys=False))
 
 
 def load_config(run_dir: str | os.PathLike) -> dict:
