@@ -23,6 +23,7 @@ from adarl.runs.layout import (
     EVALUATIONS_DIR,
     META_FILE,
     SPECTRA_DIR,
+    STEP_PREFIX,
     TRAIN_CSV,
     TRUNCATIONS_CSV,
     checkpoint_step,
@@ -329,7 +330,7 @@ class Spectrum:
 def spectra(run: Run) -> list[Spectrum]:
     folder = run.path / SPECTRA_DIR
     found = []
-    for path in sorted(folder.glob("step_*.npz")) if folder.is_dir() else []:
+    for path in sorted(folder.glob(f"{STEP_PREFIX}*.npz")) if folder.is_dir() else []:
         m = re.match(r"^step_(\d+)\.npz$", path.name)
         if not m:
             continue
