@@ -84,6 +84,11 @@ def load_config(run_dir: str | os.PathLike) -> dict:
     if not isinstance(values, dict):
         raise UsageError(f"{path} is not a run config")
     version = values.get("format_version")
+    if isinstance(version, int) and version > RUN_FORMAT_VERSION:
+        raise UsageError(
+            f"run folder {run_dir} was written in run format {version} by a newer adarl; this "
+            f"adarl ({__version__}) reads format {RUN_FORMAT_VERSION}: upgrade adarl to read it"
+        )
     if version != RUN_FORMAT_VERSION:
         raise UsageError(
             f"{run_dir} was written with run format {version!r}; this adarl "

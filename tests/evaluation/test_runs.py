@@ -28,11 +28,14 @@ def test_not_a_run(tmp_path):
         runs.load_run(tmp_path / "empty")
     bad = tmp_path / "bad"
     bad.mkdir()
+    (bad / "config.yaml").write_text("algo: sac\ntask: hopper\n")
+    with pytest.raises(UsageError, match="run format None; this adarl .* reads format 1"):
+        runs.load_run(bad)
     (bad / "config.yaml").write_text("task: hopper\nformat_version: 1\n")
     with pytest.raises(UsageError, match="no 'algo' field"):
         runs.load_run(bad)
     (bad / "config.yaml").write_text("algo: sac\ntask: hopper\nformat_version: 2\n")
-    with pytest.raises(UsageError, match="run format 2; this adarl .* reads format 1"):
+    with pytest.raises(UsageError, match="run format 2 by a newer adarl"):
         runs.load_run(bad)  # checked as a resume checks it
 
 

@@ -110,3 +110,10 @@ def test_selecting_a_checkpoint_and_its_policy_files(tmp_path):
     bare = write_run(tmp_path, "b", checkpoint=False)
     with pytest.raises(UsageError, match="has no complete checkpoint"):
         checkpoints.select_checkpoint(bare)
+
+
+def test_legacy_meta_keys():
+    assert checkpoints.rng_states({"np_rngs": [1]}) == [1]
+    assert checkpoints.rng_states({"rng_states": [2], "np_rngs": [1]}) == [2]
+    offsets = checkpoints.csv_offsets({"csv_offsets": {"episodes": 3, "train.csv": 4}})
+    assert offsets == {"episodes.csv": 3, "train.csv": 4}
