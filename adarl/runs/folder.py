@@ -81,6 +81,8 @@ def load_config(run_dir: str | os.PathLike) -> dict:
         values = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         raise UsageError(f"{path} is not valid YAML ({exc.__class__.__name__})") from exc
+    except OSError as exc:
+        raise UsageError(f"{path} is unreadable ({exc.strerror or exc})") from exc
     if not isinstance(values, dict):
         raise UsageError(f"{path} is not a run config")
     version = values.get("format_version")
