@@ -1,5 +1,6 @@
-"""Atomic file writes and one-line file-system errors: the lowest layer of adarl's I/O, used by
-the run folder (`adarl.train`), policy files (`adarl.policy`) and every command's outputs."""
+"""Atomic file writes, one-line file-system errors and the check that an output path can be
+written: the lowest layer of adarl's I/O, used by the run folder (`adarl.runs`), policy files
+(`adarl.policy`) and every command's outputs."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adarl.errors import RunFailed
+from adarl.errors import RunFailed, UsageError
 
 
 @contextlib.contextmanager
@@ -49,10 +50,10 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
 
 
 def atomic_write_json(path: str | os.PathLike, obj) -> None:
-    atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=True, default=_json_default) + "\n")
+    atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=True, default=json_default) + "\n")
 
 
-def _json_default(obj):
+def json_default(obj):
     if isinstance(obj, np.integer):
         return int(obj)
     if isinstance(obj, np.floating):
@@ -62,7 +63,7 @@ def _json_default(obj):
     raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")
 
 
-def _fsync_dir(path: Path) -> None:
+def fsync_dir(path: Path) -> None:
     try:
         fd = os.open(path, os.O_RDONLY)
     except OSError:
@@ -73,3 +74,31 @@ def _fsync_dir(path: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def check_writable_dir(path: str | os.PathLike, what: str = "--out") -> None:
+    """A one-line UsageError unless `path` is a writable folder or can be created as one
+    (writes nothing)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{what} {path} is a file; give a folder")
+    _check_creatable(path, path, what)
+
+
+def check_writable_file(path: str | os.PathLike, what: str = "--out") -> None:
+    """A one-line UsageError unless `path` can be written as a file (writes nothing)."""
+    path = Path(path)
+    if path.is_dir():
+        raise UsageError(f"{what} {path} is a folder; give a file name")
+    _check_creatable(path, path.parent, what)
+
+
+def _check_creatable(path: Path, folder: Path, what: str) -> None:
+    """`folder` (to hold `path`) exists and is writable, or its nearest existing ancestor is."""
+    probe = folder
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UsageError(f"{what} {path} cannot be written: {probe} is a file, not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise UsageError(f"{what} {path} cannot be written: {probe} is not writable")

@@ -50,7 +50,9 @@ import numpy as np  # noqa: E402
 from adarl.algos.flags import parse_int_list  # noqa: E402
 from adarl.errors import UsageError  # noqa: E402
 from adarl.evaluation import stats  # noqa: E402
-from adarl.train.io import atomic_write_bytes, atomic_write_text, read_csv  # noqa: E402
+from adarl.files import atomic_write_bytes, atomic_write_text  # noqa: E402
+from adarl.runs.layout import EVAL_CSV  # noqa: E402
+from adarl.runs.logs import read_csv  # noqa: E402
 
 # Heavy imports (JAX, torch) stay inside functions: SB3 workers are spawned processes that
 # re-import this module, and they need neither JAX nor matplotlib.
@@ -160,7 +162,7 @@ def cli_flags(config) -> list[str]:
 # ============================================================================ adarl
 def train_adarl(config, run_dir: Path) -> tuple[dict[int, list], float]:
     """Train our `sac` through the CLI into `run_dir`; returns ({seed: [(step, return)]}, wall s)."""
-    from adarl.train.run_folder import load_config as load_run_config
+    from adarl.runs.folder import load_config as load_run_config
 
     command = [sys.executable, "-m", "adarl.cli.main", "train", "--algo", "sac"]
     command += ["--preset", "paper", *cli_flags(config), "--out", str(run_dir), "--no-progress"]
@@ -175,7 +177,7 @@ def train_adarl(config, run_dir: Path) -> tuple[dict[int, list], float]:
         if theirs != mine:
             raise RuntimeError(f"{run_dir}/config.yaml has {name}={theirs!r}, expected {mine!r}")
     per_step: dict[tuple[int, int], list[float]] = {}
-    for row in read_csv(run_dir / "eval.csv"):
+    for row in read_csv(run_dir / EVAL_CSV):
         if row["dynamics"] == EVAL_DYNAMICS:
             key = (int(row["seed"]), int(row["step"]))
             per_step.setdefault(key, []).append(float(row["return"]))

@@ -61,15 +61,16 @@ def main(argv: list[str] | None = None) -> None:
 
     from adarl.evaluation import suites
     from adarl.evaluation.parallel import run_units
-    from adarl.evaluation.runs import find_runs, policy_files, select_checkpoint
+    from adarl.evaluation.runs import find_runs
     from adarl.evaluation.synthetic import policy_arrays, write_run
     from adarl.policy import save
+    from adarl.runs.checkpoints import policy_files, select_checkpoint
 
     suite = suites.get_suite(args.suite, args.task)
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = write_run(tmp, "run", task=args.task, seeds=(0,))
         (run,) = find_runs([run_dir])
-        policy = str(policy_files(select_checkpoint(run))[0])
+        policy = str(policy_files(select_checkpoint(run.path))[0])
         obs_dim, act_dim = _dims(args.task)
         save(policy, policy_arrays(obs_dim, act_dim, seed=0, hidden=HIDDEN))
 

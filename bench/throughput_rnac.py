@@ -29,8 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from adarl.algos import rnac
+from adarl.runs.layout import EPISODES_CSV
+from adarl.runs.logs import read_csv
 from adarl.train import rnac_learner
-from adarl.train.io import read_csv
 
 
 class CountingShadow(rnac_learner.ShadowSimulator):
@@ -108,7 +109,7 @@ def train_throughput(task: str, steps: int, seeds: int, **overrides) -> dict:
         wall, cpu = time.perf_counter(), time.process_time()
         rnac_learner.train(config, Path(tmp) / "run", progress=False)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-        episodes = len(read_csv(Path(tmp) / "run" / "episodes.csv"))
+        episodes = len(read_csv(Path(tmp) / "run" / EPISODES_CSV))
     return {
         "per_seed": steps / wall,
         "per_seed_cpu": steps / cpu,

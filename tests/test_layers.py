@@ -1,6 +1,6 @@
 """No module imports from a higher layer (README, "Code map"): the maths never reaches for the
-training loop, the loops never for the evaluation or the CLI, and so on. Imports inside functions
-count too."""
+training loop, the loops never for the evaluation or the CLI, and so on; and no two modules of
+one package import each other, directly or round a loop. Imports inside functions count too."""
 
 import ast
 from pathlib import Path
@@ -14,6 +14,7 @@ LAYERS = [
     {"envs"},
     {"nets"},
     {"algos"},
+    {"runs"},
     {"train"},
     {"evaluation", "theory"},
     {"sweeps"},
@@ -22,6 +23,9 @@ LAYERS = [
 # `adarl` itself only sets `__version__` and registers the Gymnasium ids; a sweep worker is a
 # process entry point that runs `adarl train` as the CLI does
 EXEMPT = {("__init__", "envs"), ("sweeps.worker", "cli")}
+# of the layers below it, the run format reads only the ground floor and the algorithm registry
+# (JAX-free: it turns a config.yaml back into a config), never the environments or the maths
+ONLY = {"runs": {"__init__", "__version__", "errors", "files", "algos.registry"}}
 
 
 def _layer(part: str) -> int:
@@ -31,24 +35,69 @@ def _layer(part: str) -> int:
     raise AssertionError(f"adarl.{part} is in no layer of LAYERS; add it")
 
 
+def _module(path: Path) -> str:
+    """`train.loop` for adarl/train/loop.py, `train` for adarl/train/__init__.py."""
+    parts = path.relative_to(PACKAGE).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" and len(parts) > 1 else parts)
+
+
+MODULES = {_module(p) for p in PACKAGE.rglob("*.py")}
+
+
 def _imports(path: Path):
+    """The adarl modules `path` imports, as `_module` names (`from adarl.train import fork`:
+    `train.fork`; a name that is not a module: the module it comes from)."""
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("adarl"):
-            parts = node.module.split(".")
-            names = [parts[1]] if len(parts) > 1 else [a.name for a in node.names]
-            yield from names
+            base = node.module.split(".")[1:]
+            for alias in node.names:
+                full = ".".join([*base, alias.name])
+                yield full if full in MODULES or not base else ".".join(base)
         elif isinstance(node, ast.Import):
-            yield from (a.name.split(".")[1] for a in node.names if a.name.startswith("adarl."))
+            yield from (a.name.split(".", 1)[1] for a in node.names if a.name.startswith("adarl."))
+
+
+GRAPH = {_module(p): set(_imports(p)) for p in sorted(PACKAGE.rglob("*.py"))}
 
 
 def test_no_module_imports_a_higher_layer():
     found = []
-    for path in sorted(PACKAGE.rglob("*.py")):
-        module = ".".join(path.relative_to(PACKAGE).with_suffix("").parts)
+    for module, targets in GRAPH.items():
         top = module.split(".")[0]
-        for target in _imports(path):
-            if (module, target) in EXEMPT or (top, target) in EXEMPT:
+        for target in sorted(targets):
+            head = target.split(".")[0]
+            if (module, head) in EXEMPT or (top, head) in EXEMPT:
                 continue
-            if _layer(target) > _layer(top):
+            if _layer(head) > _layer(top):
                 found.append(f"adarl.{module} imports adarl.{target}")
+            elif head != top and top in ONLY and target not in ONLY[top] and head not in ONLY[top]:
+                found.append(f"adarl.{module} imports adarl.{target} (not in ONLY[{top!r}])")
     assert not found, "; ".join(found)
+
+
+def test_no_import_cycle_inside_a_package():
+    """Modules of one package (`train.io` and `train.provenance` once) form no import cycle."""
+
+    def package(module: str) -> str:
+        return module.rpartition(".")[0]
+
+    edges = {
+        m: {t for t in targets if t != m and package(t) == package(m) and package(m)}
+        for m, targets in GRAPH.items()
+    }
+    cycles, state = [], {}  # state: 1 on the current path, 2 done
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = 1
+        for target in sorted(edges.get(module, ())):
+            if state.get(target) == 1:
+                loop = [*path[path.index(target) :], target]
+                cycles.append(" -> ".join(f"adarl.{m}" for m in loop))
+            elif target not in state:
+                visit(target, [*path, target])
+        state[module] = 2
+
+    for module in sorted(edges):
+        if module not in state:
+            visit(module, [module])
+    assert not cycles, "import cycles: " + "; ".join(cycles)

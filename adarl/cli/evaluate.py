@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         write_evaluation,
     )
     from adarl.evaluation.runs import find_runs
-    from adarl.train.io import check_writable_file
+    from adarl.files import check_writable_file
 
     if args.suite is not None:
         return run_suite_command(args)
@@ -160,7 +160,8 @@ def run_suite_command(args: argparse.Namespace) -> int:
 
     from adarl.evaluation import suites
     from adarl.evaluation.runs import find_runs
-    from adarl.train.io import check_writable_file
+    from adarl.files import check_writable_file
+    from adarl.runs.layout import EVALUATIONS_DIR, SUITES_DIR
 
     mixed = [
         flag
@@ -192,8 +193,8 @@ def run_suite_command(args: argparse.Namespace) -> int:
     suites.plan_suite(runs, args.suite, args.episodes, args.points, **options)  # checks only
     stem = suites.file_name(args.suite, args.checkpoint)
     for run_ in runs:
-        check_writable_file(run_.path / "evaluations" / f"{stem}.csv")
-        check_writable_file(run_.path / suites.SUITES_DIR / f"{stem.removeprefix('suite-')}.csv")
+        check_writable_file(run_.path / EVALUATIONS_DIR / f"{stem}.csv")
+        check_writable_file(run_.path / SUITES_DIR / f"{stem.removeprefix('suite-')}.csv")
     tables = suites.run_suite(
         runs,
         args.suite,

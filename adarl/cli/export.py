@@ -24,12 +24,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from adarl.evaluation.export import export_policy
-    from adarl.evaluation.runs import load_run, policy_files, select_checkpoint
+    from adarl.evaluation.runs import load_run
+    from adarl.runs.checkpoints import policy_files, select_checkpoint
 
     run_ = load_run(args.run_dir)
     seed = args.seed
     if seed is None:
-        seed = next(iter(policy_files(select_checkpoint(run_, args.checkpoint))))
+        seed = next(iter(policy_files(select_checkpoint(run_.path, args.checkpoint))))
     done = export_policy(run_, seed, args.out, args.checkpoint)
     print(
         f"wrote {done.out}: seed {seed} of {run_.path} ({run_.task}, {run_.label}) at step "

@@ -41,8 +41,9 @@ def run(args: argparse.Namespace) -> int:
 
     from adarl.evaluation import grid
     from adarl.evaluation.play import check_video_path, play, prepare_backend
-    from adarl.evaluation.runs import load_run, policy_file, policy_files, select_checkpoint
-    from adarl.train.io import check_writable_file
+    from adarl.evaluation.runs import load_run
+    from adarl.files import check_writable_file
+    from adarl.runs.checkpoints import policy_file, policy_files, select_checkpoint
 
     prepare_backend()  # before anything imports MuJoCo
     check_video_path(Path(args.video))
@@ -50,8 +51,8 @@ def run(args: argparse.Namespace) -> int:
     run_ = load_run(args.run_dir)
     seed = args.seed
     if seed is None:
-        seed = next(iter(policy_files(select_checkpoint(run_, args.checkpoint))))
-    path = policy_file(run_, seed, args.checkpoint)
+        seed = next(iter(policy_files(select_checkpoint(run_.path, args.checkpoint))))
+    path = policy_file(run_.path, seed, args.checkpoint)
     holds = dict(grid.parse_hold(h) for h in args.hold)
     dynamics = grid.point_label(args.dynamics, holds)
 

@@ -18,11 +18,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
     """Lines of a table: step, layer, then one column per seed with `old→new` ranks; a cut the
     retain clause refused shows as `old→old (retained r_c, err e)`."""
-    from adarl.train.io import read_csv
-    from adarl.train.run_folder import load_config
+    from adarl.runs.folder import load_config
+    from adarl.runs.layout import TRUNCATIONS_CSV
+    from adarl.runs.logs import read_csv
 
     config = load_config(run_dir)
-    path = run_dir / "truncations.csv"
+    path = run_dir / TRUNCATIONS_CSV
     if not path.exists():
         raise UsageError(
             f"{run_dir} has no truncations.csv (algo {config.get('algo')!r} does "

@@ -131,7 +131,7 @@ def tracking_env(environ) -> dict[str, str]:
 def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]:
     """The `adarl train` flags that mirror every unit to W&B (none without --track); a one-line
     UsageError if wandb is missing or a --wandb-* flag comes without --track."""
-    from adarl.train import tracking
+    from adarl.runs import tracking
 
     given = [n for n in ("wandb_project", "wandb_entity") if getattr(args, n) is not None]
     if not args.track:
@@ -146,9 +146,9 @@ def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]
 
 
 def run(args: argparse.Namespace) -> int:
+    from adarl.files import check_writable_dir
     from adarl.sweeps import manifest, runner, spec
     from adarl.sweeps.backends import default_workers, make_backend
-    from adarl.train.io import check_writable_dir
 
     if not args.progress_every > 0:  # NaN too; inf: never
         raise UsageError(f"--progress-every must be seconds > 0, got {args.progress_every:g}")

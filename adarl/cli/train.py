@@ -129,7 +129,7 @@ def build_config(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     from adarl.algos import registry
-    from adarl.train import run_folder
+    from adarl.runs import folder
 
     command = "adarl train " + shlex.join(sys.argv[2:]) if len(sys.argv) > 1 else "adarl train"
     started = time.monotonic()
@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--at is for --fork RUN_DIR")
     if args.fork:
         run_dir = fork_run(args, command)
-        algo, config = run_folder.config_from_run(run_dir)
+        algo, config = folder.config_from_run(run_dir)
         with _tracked(args, run_dir, config, command):
             registry.trainer(algo)(config, run_dir, True, progress, command)
     elif args.resume:
@@ -147,11 +147,11 @@ def run(args: argparse.Namespace) -> int:
             extra = given[0].replace("_", "-") if given else ("preset" if args.preset else "out")
             raise UsageError(f"--resume continues a run with its own settings; drop --{extra}")
         run_dir = Path(args.resume)
-        algo, config = run_folder.config_from_run(run_dir)
+        algo, config = folder.config_from_run(run_dir)
         with _tracked(args, run_dir, config, command):
             registry.trainer(algo)(config, run_dir, True, progress, command)
         # a resumed run reports like the run it continues (its --preset, its --report)
-        recorded = recorded_args(str(run_folder.load_config(run_dir).get("command", "")))
+        recorded = recorded_args(str(folder.load_config(run_dir).get("command", "")))
         if recorded is not None:
             args.preset = recorded.preset
             args.report = recorded.report if args.report is None else args.report
@@ -225,19 +225,20 @@ def finish(run_dir: Path, wall_seconds: float, report: bool | None, preset: str 
     """The end-of-training summary, after the report when one is asked for (`--report`, or
     a preset in `REPORT_PRESETS`)."""
     from adarl.evaluation.summary import training_summary
+    from adarl.runs.layout import REPORT_DIR
 
     report_dir = None
     if wants_report(report, preset):
         from adarl.evaluation.report import ReportOptions, build_report
 
-        report_dir = run_dir / "report"
+        report_dir = run_dir / REPORT_DIR
         command = shlex.join(["adarl", "report", str(run_dir), "--out", str(report_dir)])
         build_report([run_dir], report_dir, ReportOptions(command=command))
     print(training_summary(run_dir, wall_seconds, report_dir))
 
 
 def _tracked(args: argparse.Namespace, run_dir: Path, config, command: str):
-    from adarl.train import tracking
+    from adarl.runs import tracking
 
     for name in ("wandb_project", "wandb_entity", "wandb_group"):
         if getattr(args, name) is not None and not args.track:

@@ -15,10 +15,20 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from adarl.evaluation.evaluate import EVALUATIONS_DIR
-from adarl.evaluation.runs import Run, checkpoint_step, config_value, policy_files
-from adarl.train.io import read_csv
-from adarl.train.run_folder import checkpoint_dirs
+from adarl.evaluation.runs import Run, config_value
+from adarl.runs.checkpoints import checkpoint_dirs, policy_files
+from adarl.runs.layout import (
+    EPISODES_CSV,
+    EVAL_CSV,
+    EVALUATIONS_DIR,
+    META_FILE,
+    SPECTRA_DIR,
+    STEP_PREFIX,
+    TRAIN_CSV,
+    TRUNCATIONS_CSV,
+    checkpoint_step,
+)
+from adarl.runs.logs import read_csv
 
 NOMINAL = "nominal"
 CURVE_BINS = 50
@@ -99,7 +109,7 @@ def final_behaviour(run: Run) -> pd.DataFrame:
         return pd.DataFrame(columns=["seed", *columns, "max_length"])
     present = [c for c in columns if c in episodes]
     means = episodes.groupby("seed")[present].mean().reindex(columns=columns).reset_index()
-    logged = note.startswith("eval.csv")
+    logged = note.startswith(EVAL_CSV)
     limit = config_value(run.config, "max_episode_steps") if logged else None
     return means.assign(max_length=int(limit or MAX_EPISODE_STEPS))
 
@@ -162,7 +172,7 @@ def last_evaluations(log: pd.DataFrame, k: int) -> pd.DataFrame:
 def last_k_scores(run: Run, k: int) -> tuple[pd.DataFrame, str]:
     """`last_evaluations` of the run's eval.csv under `score_dynamics`, and a note saying where
     the scores came from (empty with note "none" when the run logged no evaluation)."""
-    log = read_table(run.path / "eval.csv")
+    log = read_table(run.path / EVAL_CSV)
     dynamics = score_dynamics(log)
     if dynamics is None:
         return last_evaluations(log.iloc[0:0], k), "none"
@@ -185,7 +195,7 @@ def best_scores(run: Run) -> tuple[pd.DataFrame, str]:
     record = {}
     if found:
         try:
-            meta = json.loads((found[-1] / "meta.json").read_text(encoding="utf-8"))
+            meta = json.loads((found[-1] / META_FILE).read_text(encoding="utf-8"))
             record = (meta.get("best") or {}).get("seeds") or {}
         except (OSError, ValueError):
             record = {}
@@ -206,7 +216,7 @@ def best_scores(run: Run) -> tuple[pd.DataFrame, str]:
 
 def _nominal_evaluations(run: Run) -> pd.DataFrame:
     """The rows of the run's eval.csv on nominal dynamics (empty if there are none)."""
-    log = read_table(run.path / "eval.csv")
+    log = read_table(run.path / EVAL_CSV)
     if log.empty or "dynamics" not in log:
         return log.iloc[0:0]
     return log[log["dynamics"] == NOMINAL]
@@ -224,13 +234,13 @@ def training_curve(run: Run) -> tuple[pd.DataFrame, str]:
     run without them falls back to the training episodes (episodes.csv) averaged in
     `CURVE_BINS` equal step bins.
     """
-    log = read_table(run.path / "eval.csv")
+    log = read_table(run.path / EVAL_CSV)
     if not log.empty and "dynamics" in log:
         log = log[log["dynamics"] == NOMINAL]
         if not log.empty:
             curve = log.groupby(["step", "seed"], as_index=False)["return"].mean()
             return curve, "nominal evaluation (eval.csv)"
-    episodes = read_table(run.path / "episodes.csv")
+    episodes = read_table(run.path / EPISODES_CSV)
     if episodes.empty:
         return pd.DataFrame(columns=["step", "seed", "return"]), "none"
     top = float(episodes["step"].max())
@@ -245,7 +255,7 @@ def rank_history(run: Run) -> pd.DataFrame:
     """Rank of each bottleneck over training: columns `step, seed, layer, rank`, from train.csv's
     logging points and, at the exact step of each truncation, its new rank (truncations.csv), so
     that a step plot changes where the rank did, not at the next logging point."""
-    log = read_table(run.path / "train.csv")
+    log = read_table(run.path / TRAIN_CSV)
     columns = [c for c in log.columns if c.startswith("rank_")]
     if log.empty or not columns:
         return pd.DataFrame(columns=["step", "seed", "layer", "rank"])
@@ -254,7 +264,7 @@ def rank_history(run: Run) -> pd.DataFrame:
     )
     long["layer"] = long["layer"].str.removeprefix("rank_")
     long = long.dropna(subset=["rank"])
-    cuts = read_table(run.path / "truncations.csv")
+    cuts = read_table(run.path / TRUNCATIONS_CSV)
     if not cuts.empty:
         cuts = cuts[["step", "seed", "layer", "new_rank"]].rename(columns={"new_rank": "rank"})
         long = pd.concat([cuts, long], ignore_index=True)  # a truncation's row wins a tie
@@ -264,7 +274,7 @@ def rank_history(run: Run) -> pd.DataFrame:
 
 def truncation_steps(run: Run) -> list[int]:
     """Steps at which the run truncated its bottlenecks (from truncations.csv)."""
-    log = read_table(run.path / "truncations.csv")
+    log = read_table(run.path / TRUNCATIONS_CSV)
     if log.empty:
         return []
     return sorted(int(s) for s in log["step"].unique())
@@ -285,7 +295,7 @@ def rank_settling(run: Run) -> pd.DataFrame:
     `last_change` (step of the last truncation that lowered the rank; NaN if none) and `settled`
     (the rank did not change at the last truncation: it stopped before the run did)."""
     columns = ["seed", "layer", "final_rank", "truncations", "cuts", "retained", "last_change"]
-    log = read_table(run.path / "truncations.csv")
+    log = read_table(run.path / TRUNCATIONS_CSV)
     if log.empty:
         return pd.DataFrame(columns=[*columns, "settled"])
     rows = []
@@ -318,9 +328,9 @@ class Spectrum:
 
 
 def spectra(run: Run) -> list[Spectrum]:
-    folder = run.path / "spectra"
+    folder = run.path / SPECTRA_DIR
     found = []
-    for path in sorted(folder.glob("step_*.npz")) if folder.is_dir() else []:
+    for path in sorted(folder.glob(f"{STEP_PREFIX}*.npz")) if folder.is_dir() else []:
         m = re.match(r"^step_(\d+)\.npz$", path.name)
         if not m:
             continue

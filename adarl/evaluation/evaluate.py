@@ -26,11 +26,12 @@ import pandas as pd
 from adarl.envs.tasks import env_options
 from adarl.errors import UsageError
 from adarl.evaluation import grid
-from adarl.evaluation.runs import Run, checkpoint_step, policy_files, select_checkpoint
-from adarl.train.io import atomic_write_json, atomic_write_text
+from adarl.evaluation.runs import Run
+from adarl.files import atomic_write_json, atomic_write_text
+from adarl.runs.checkpoints import policy_files, select_checkpoint
+from adarl.runs.layout import EVALUATIONS_DIR, checkpoint_step
 
 EVAL_SEED = 100_000  # far from the seeds training uses for its own environments
-EVALUATIONS_DIR = "evaluations"
 COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length", "distance"]
 
 
@@ -118,7 +119,7 @@ def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
     units: list[Unit] = []
     grids: dict[str, list[dict[str, float]]] = {}
     for index, run in enumerate(runs):
-        checkpoint = select_checkpoint(run, spec.checkpoint)
+        checkpoint = select_checkpoint(run.path, spec.checkpoint)
         files = policy_files(checkpoint)
         if run.task not in grids:
             check_dynamics(spec.dynamics, run.task)

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from adarl.errors import UsageError
-from adarl.evaluation.runs import Run, checkpoint_step, policy_file
+from adarl.evaluation.runs import Run
+from adarl.files import atomic_write_bytes, check_writable_file
 from adarl.policy import NumpyPolicy, load
-from adarl.train.io import atomic_write_bytes, check_writable_file
+from adarl.runs.checkpoints import policy_file
+from adarl.runs.layout import checkpoint_step
 
 
 @dataclass(frozen=True)
@@ -53,7 +55,7 @@ def export_policy(
     if out.is_dir():
         raise UsageError(f"--out {out} is a folder; give a file name such as policy.npz")
     check_writable_file(out)
-    source = policy_file(run, seed, checkpoint)
+    source = policy_file(run.path, seed, checkpoint)
     try:
         policy = load(source)
     except (OSError, ValueError, KeyError) as exc:

@@ -55,12 +55,12 @@ from adarl.evaluation.runs import (
     find_runs,
     flatten_config,
     method_label,
-    select_checkpoint,
     sort_methods,
     sort_tasks,
 )
-from adarl.train import provenance
-from adarl.train.run_folder import checkpoint_dirs
+from adarl.runs import provenance
+from adarl.runs.checkpoints import checkpoint_dirs, select_checkpoint
+from adarl.runs.layout import EVAL_CSV
 
 REFERENCE = registry.REFERENCE
 INDEX = "index.md"
@@ -244,7 +244,7 @@ def usable_runs(runs: list[Run], skip_incomplete: bool) -> tuple[list[Run], list
         elif skip_incomplete:
             notes.append(f"Skipped {run.path}: no complete checkpoint yet.")
         else:
-            select_checkpoint(run)  # raises the one-line error naming the folder
+            select_checkpoint(run.path)  # raises the one-line error naming the folder
     if not kept:
         raise UsageError("no run with a complete checkpoint to report on")
     return kept, notes
@@ -378,7 +378,7 @@ def final_sources(scored) -> str:
         source = item[2] if len(item) > 2 else ""
         if source.startswith("`adarl evaluate`"):
             kinds.append(source.split(",")[0].replace(" (", ", "))
-        elif source.startswith("eval.csv"):
+        elif source.startswith(EVAL_CSV):
             kinds.append("the last evaluation in eval.csv")
     return " or ".join(dict.fromkeys(kinds))
 

@@ -1,7 +1,6 @@
-"""Finding run folders and reading what evaluation needs from them: the config, the seeds, the
-checkpoint to use and its policy files, and a method label that tells runs apart in a report.
-
-The layout of a run folder is fixed by docs/run-format.md.
+"""Finding run folders for evaluation and giving each a method label that tells runs apart in a
+report. Reading a run folder (its config.yaml with the format-version check, checkpoints, policy
+files) is `adarl.runs`; the layout is fixed by docs/run-format.md.
 """
 
 from __future__ import annotations
@@ -12,14 +11,10 @@ from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import yaml
-
 from adarl.algos import registry
 from adarl.errors import UsageError
-from adarl.train.run_folder import checkpoint_dirs
-
-CONFIG_FILE = "config.yaml"
-POLICY_PATTERN = re.compile(r"^policy_seed_(\d+)\.npz$")
+from adarl.runs.folder import done_step, load_config
+from adarl.runs.layout import CONFIG_FILE, is_run
 
 # config fields that say how a run was launched, not what was trained; runs differing only in
 # these are the same method
@@ -81,14 +76,7 @@ class Run:
     @property
     def done_step(self) -> int | None:
         """The final step recorded in DONE, or None while the run is unfinished."""
-        done = self.path / "DONE"
-        if not done.is_file():
-            return None
-        text = done.read_text(encoding="utf-8").strip()
-        try:
-            return int(float(text.split()[0])) if text else -1
-        except ValueError:
-            return -1
+        return done_step(self.path)
 
 
 def config_value(config: dict, key: str, default=None):
@@ -132,23 +120,11 @@ def parse_seeds(value) -> list[int]:
 
 
 # ----------------------------------------------------------------------------- finding runs
-def is_run(path: str | os.PathLike) -> bool:
-    return (Path(path) / CONFIG_FILE).is_file()
-
-
 def load_run(path: str | os.PathLike) -> Run:
-    """Read a run folder's config; a one-line `UsageError` if the folder is not a run."""
+    """Read a run folder's config (checked as a resume checks it: `adarl.runs.folder.load_config`);
+    a one-line `UsageError` if the folder is not a run of this run format."""
     path = Path(path)
-    if not path.is_dir():
-        raise UsageError(f"{path} is not a folder")
-    if not is_run(path):
-        raise UsageError(f"{path} is not a run folder (it has no {CONFIG_FILE})")
-    try:
-        config = yaml.safe_load((path / CONFIG_FILE).read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise UsageError(f"{path / CONFIG_FILE} is unreadable ({type(exc).__name__})") from exc
-    if not isinstance(config, dict):
-        raise UsageError(f"{path / CONFIG_FILE} is not a mapping of config fields")
+    config = load_config(path)
     for key in ("algo", "task"):
         if config_value(config, key) is None:
             raise UsageError(f"{path / CONFIG_FILE} has no {key!r} field; is {path} a run folder?")
@@ -252,64 +228,6 @@ def _overlapping_pair(runs: list[Run]):
             if (sa & sb) or not sa or not sb:
                 return a, b
     return None
-
-
-# ----------------------------------------------------------------------------- checkpoints
-def checkpoint_step(checkpoint: Path) -> int:
-    return int(checkpoint.name.split("_")[1])
-
-
-def select_checkpoint(run: Run, step: int | None = None) -> Path:
-    """The final complete checkpoint of `run`, or the one at `step`; `UsageError` otherwise
-    (also for a run written in a newer run format, whose checkpoints this adarl cannot read)."""
-    check_run_format(run)
-    found = checkpoint_dirs(run.path)
-    if not found:
-        raise UsageError(
-            f"run folder {run.path} has no complete checkpoint (checkpoints/step_*/meta.json)"
-        )
-    if step is None:
-        return found[-1]
-    for checkpoint in found:
-        if checkpoint_step(checkpoint) == step:
-            return checkpoint
-    steps = ", ".join(str(checkpoint_step(c)) for c in found)
-    raise UsageError(f"run folder {run.path} has no checkpoint at step {step}; it has: {steps}")
-
-
-def check_run_format(run: Run) -> None:
-    """A one-line UsageError for a run folder written in a newer run format than this adarl
-    reads (its checkpoints may not even look complete here)."""
-    from adarl import __version__
-    from adarl.train.io import RUN_FORMAT_VERSION
-
-    version = config_value(run.config, "format_version")
-    if isinstance(version, int) and version > RUN_FORMAT_VERSION:
-        raise UsageError(
-            f"run folder {run.path} was written in run format {version} by a newer adarl; this "
-            f"adarl ({__version__}) reads format {RUN_FORMAT_VERSION}: upgrade adarl to read it"
-        )
-
-
-def policy_files(checkpoint: Path) -> dict[int, Path]:
-    """`{seed: policy file}` of a checkpoint folder (`policy_seed_<s>.npz`), sorted by seed."""
-    found = {}
-    for p in checkpoint.iterdir():
-        m = POLICY_PATTERN.match(p.name)
-        if m:
-            found[int(m.group(1))] = p
-    if not found:
-        raise UsageError(f"checkpoint {checkpoint} holds no policy_seed_<s>.npz file")
-    return dict(sorted(found.items()))
-
-
-def policy_file(run: Run, seed: int, step: int | None = None) -> Path:
-    """The policy file of one seed at the final (or chosen) checkpoint."""
-    files = policy_files(select_checkpoint(run, step))
-    if seed not in files:
-        allowed = ", ".join(map(str, files))
-        raise UsageError(f"run folder {run.path} has no seed {seed}; it has seeds: {allowed}")
-    return files[seed]
 
 
 # ----------------------------------------------------------------------------- display order

@@ -36,9 +36,8 @@ import pandas as pd
 
 from adarl.errors import UsageError
 from adarl.evaluation import grid
+from adarl.runs.layout import EVALUATIONS_DIR, SUITES_DIR
 
-#: Where a suite's per-seed summary goes in a run folder: RUN_DIR/suites/<name>.csv.
-SUITES_DIR = "suites"
 SUMMARY_COLUMNS = ["suite", "step", "seed", "points", "episodes", "worst", "average", "worst_point"]
 SPACINGS = ("linspace", "arange")
 
@@ -322,8 +321,8 @@ def write_suite(
     """Store a run's suite result: the episode table as an evaluation
     (`RUN_DIR/evaluations/suite-<name>.{csv,json}`, the sidecar naming the suite) and the
     per-seed summary `RUN_DIR/suites/<name>.csv`. Returns both CSV paths."""
-    from adarl.evaluation.evaluate import EVALUATIONS_DIR, write_evaluation
-    from adarl.train.io import atomic_write_text
+    from adarl.evaluation.evaluate import write_evaluation
+    from adarl.files import atomic_write_text
 
     suite = get_suite(name, run.task, points)
     stem = file_name(name, checkpoint)

@@ -7,7 +7,8 @@ the report without training:
     # adarl report demo --out demo-report
 
 Returns, ranks and spectra are made-up but shaped like real logs; the policy files are small
-random networks in the `adarl.policy` format (they run in the real environments).
+random networks in the `adarl.policy` format (they run in the real environments). Everything in
+the run folder is written by the run format's own writers (`adarl.runs`).
 """
 
 from __future__ import annotations
@@ -16,14 +17,28 @@ import json
 import os
 import zlib
 from collections.abc import Sequence
+from io import BytesIO
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from adarl.algos import registry
-from adarl.policy import FORMAT, save
+from adarl.files import atomic_write_bytes
+from adarl.policy import FORMAT, to_bytes
+from adarl.runs import checkpoints, folder
+from adarl.runs.layout import (
+    EPISODES_CSV,
+    EVAL_CSV,
+    EVALUATIONS_DIR,
+    RUN_FORMAT_VERSION,
+    SPECTRA_DIR,
+    TRAIN_CSV,
+    TRUNCATIONS_CSV,
+    policy_file_name,
+    spectrum_file,
+)
+from adarl.runs.logs import EVAL_COLUMNS, CsvLog, episode_columns
 
 DIMS = {"hopper": (11, 3), "walker2d": (17, 6), "ant": (105, 8), "humanoid": (348, 17)}
 PARAMS = {
@@ -33,6 +48,7 @@ PARAMS = {
     "humanoid": {"gravity": 14.715, "wind": 1.0},
 }
 LAYERS = ("actor_1", "q1_1", "q2_1")
+TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 WIDTH = 64
 POLICY_HIDDEN = 16
 
@@ -120,7 +136,7 @@ def write_run(
         "seeds": seeds,
         "total_steps": total_steps,
         "eval_every": total_steps // n_evals,
-        "format_version": 1,
+        "format_version": RUN_FORMAT_VERSION,
         "adarl_version": "0.1.0",
         "command": f"adarl train --algo {algo} --task {task} --seeds {seeds[0]}-{seeds[-1]} "
         f"--total-steps {total_steps} --out {run}",
@@ -130,7 +146,7 @@ def write_run(
     if rank is not None:
         config["rank"] = rank
     config.update(extra_config or {})
-    (run / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False), encoding="utf-8")
+    folder.write_config_values(run, config)
 
     eval_steps = [total_steps * (k + 1) // n_evals for k in range(n_evals)]
     seed_quality = {s: quality * (1.0 + 0.05 * rng.standard_normal()) for s in seeds}
@@ -140,7 +156,7 @@ def write_run(
          "length": 1000}
         for step in eval_steps for s in seeds for e in range(2)
     ]  # fmt: skip
-    pd.DataFrame(rows).to_csv(run / "eval.csv", index=False)
+    _write_csv(run / EVAL_CSV, EVAL_COLUMNS, rows)
 
     params = PARAMS[task]
     episodes = [
@@ -149,7 +165,7 @@ def write_run(
          **{f"p_{p}": v for p, v in params.items()}}
         for s in seeds for i in range(min(50, total_steps // 200))
     ]  # fmt: skip
-    pd.DataFrame(episodes).to_csv(run / "episodes.csv", index=False)
+    _write_csv(run / EPISODES_CSV, episode_columns(params), episodes)
 
     truncation_steps = [total_steps * (k + 1) // (n_truncations + 1) for k in range(n_truncations)]
     rank_paths = {
@@ -166,7 +182,7 @@ def write_run(
             elif rank is not None:
                 row.update({f"rank_{layer}": rank for layer in LAYERS})
             train.append(row)
-    pd.DataFrame(train).to_csv(run / "train.csv", index=False)
+    _write_csv(run / TRAIN_CSV, list(train[0]), train)
 
     if adaptive:
         trunc = [
@@ -174,33 +190,39 @@ def write_run(
              "proposed_rank": rank_paths[(s, layer)][k + 1], "new_rank": rank_paths[(s, layer)][k + 1]}
             for k, t in enumerate(truncation_steps) for s in seeds for layer in LAYERS
         ]  # fmt: skip
-        pd.DataFrame(trunc).to_csv(run / "truncations.csv", index=False)
-        (run / "spectra").mkdir(exist_ok=True)
+        _write_csv(run / TRUNCATIONS_CSV, TRUNCATION_COLUMNS, trunc)
         for k, t in enumerate(truncation_steps):
             decay = np.exp(-np.arange(WIDTH) / (8.0 / (k + 1)))
             layers = {
                 layer: np.stack([decay * (1 + 0.1 * rng.random()) for _ in seeds])
                 for layer in LAYERS
             }
-            np.savez(run / "spectra" / f"step_{t:012d}.npz", seeds=np.array(seeds), **layers)
+            buf = BytesIO()
+            np.savez(buf, seeds=np.array(seeds), **layers)
+            atomic_write_bytes(run / SPECTRA_DIR / spectrum_file(t), buf.getvalue())
 
     if checkpoint:
-        ckpt = run / "checkpoints" / f"step_{total_steps:012d}"
-        ckpt.mkdir(parents=True, exist_ok=True)
-        np.savez(ckpt / "arrays.npz", step=np.array(total_steps))
+        policies = {}
         for s in seeds:
             policy_rank = (
                 rank if rank is not None else (rank_paths[(s, "actor_1")][-1] if adaptive else None)
             )
             if policy_rank is not None:
                 policy_rank = min(policy_rank, POLICY_HIDDEN)
-            save(
-                ckpt / f"policy_seed_{s}.npz", policy_arrays(obs_dim, act_dim, s, rank=policy_rank)
-            )
-        (ckpt / "meta.json").write_text(json.dumps({"step": total_steps, "format_version": 1}))
+            arrays = policy_arrays(obs_dim, act_dim, s, rank=policy_rank)
+            policies[policy_file_name(s)] = to_bytes(arrays)
+        arrays = {"step": np.array(total_steps)}
+        checkpoints.save_checkpoint(run, total_steps, arrays, {}, files=policies)
     if done:
-        (run / "DONE").write_text(f"{total_steps}\n")
+        folder.finish(run, total_steps)
     return run
+
+
+def _write_csv(path: Path, columns: list[str], rows: list[dict]) -> None:
+    path.unlink(missing_ok=True)  # CsvLog appends to a log it finds
+    log = CsvLog(path, columns)
+    log.write(rows)
+    log.close()
 
 
 def write_sweep(
@@ -214,10 +236,9 @@ def write_sweep(
 ) -> Path:
     """Write an `adarl evaluate --sweep` style result (CSV + JSON sidecar) into `run`."""
     from adarl.evaluation import grid
-    from adarl.evaluation.evaluate import EVALUATIONS_DIR
 
     run = Path(run)
-    config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
+    config = folder.load_config(run)
     seeds, step, task = config["seeds"], config["total_steps"], config["task"]
     hold = dict(hold or {})
     centre = PARAMS[task].get(parameter, float(np.mean(values)))
@@ -236,11 +257,11 @@ def write_sweep(
                              "length": 1000, **{f"p_{k}": val for k, val in point.items()}})  # fmt: skip
     axis = grid.Axis(parameter, tuple(float(v) for v in values), f"{parameter}=…")
     name = grid.evaluation_name("nominal", [axis], list(hold.items()))
-    folder = run / EVALUATIONS_DIR
-    folder.mkdir(exist_ok=True)
-    pd.DataFrame(rows).to_csv(folder / f"{name}.csv", index=False)
+    evaluations = run / EVALUATIONS_DIR
+    evaluations.mkdir(exist_ok=True)
+    pd.DataFrame(rows).to_csv(evaluations / f"{name}.csv", index=False)
     meta = {"name": name, "task": task, "dynamics": "nominal", "sweep": {parameter: list(axis.values)},
             "hold": hold, "episodes": episodes, "checkpoint_step": step, "final_checkpoint": True,
             "command": f"adarl evaluate {run} --sweep {parameter}=…"}  # fmt: skip
-    (folder / f"{name}.json").write_text(json.dumps(meta))
-    return folder / f"{name}.csv"
+    (evaluations / f"{name}.json").write_text(json.dumps(meta))
+    return evaluations / f"{name}.csv"

@@ -30,6 +30,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from adarl.runs.layout import DONE_FILE, TRAIN_CSV
 from adarl.sweeps.spec import Sweep, Unit
 
 MEASURED = Path(__file__).with_name("throughput.csv")
@@ -277,9 +278,9 @@ def read_measurements(path: Path = MEASURED) -> list[Measurement]:
 
 def measure_run(run_dir: Path, unit_fields: dict, source: str) -> Measurement | None:
     """What a run folder's train.csv says about its unit's speed, or None if it has no rows."""
-    from adarl.train.io import read_csv
+    from adarl.runs.logs import read_csv
 
-    path = Path(run_dir) / "train.csv"
+    path = Path(run_dir) / TRAIN_CSV
     if not path.exists():
         return None
     try:
@@ -301,10 +302,10 @@ def measure_run(run_dir: Path, unit_fields: dict, source: str) -> Measurement | 
 
 def remaining_steps(out: Path, unit: Unit) -> int:
     """Steps per seed a run of `unit` still has to train: from its newest checkpoint."""
-    from adarl.train.io import checkpoint_dirs
+    from adarl.runs.checkpoints import checkpoint_dirs
 
     run_dir = Path(out) / unit.id
-    if (run_dir / "DONE").exists():
+    if (run_dir / DONE_FILE).exists():
         return 0
     found = checkpoint_dirs(run_dir)
     done = int(found[-1].name.split("_")[1]) if found else unit.fork_step  # a fork: the prefix

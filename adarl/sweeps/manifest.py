@@ -1,7 +1,7 @@
 """The sweep's manifest: `SWEEP_DIR/manifest.json`, the state of every unit.
 
 Only the sweep process writes it, and always whole, to a temp file that is then renamed into
-place (`adarl.train.io.atomic_write_json`), so a kill at any moment leaves the previous or the
+place (`adarl.files.atomic_write_json`), so a kill at any moment leaves the previous or the
 next version, never a torn file. It records, per unit: what it trains (the `adarl train` flags),
 its status (queued, running, done, failed), the attempts made so far (over every invocation),
 the last exit status and error, where it ran, and its last known step.
@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 from adarl.errors import UsageError
+from adarl.files import atomic_write_json
 from adarl.sweeps.spec import Sweep
-from adarl.train.io import atomic_write_json
 
 FILE = "manifest.json"
 FORMAT_VERSION = 1

@@ -35,6 +35,7 @@ from pathlib import Path
 
 from adarl.errors import UsageError
 from adarl.evaluation.summary import duration
+from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.backends import thread_env
 from adarl.sweeps.spec import Sweep, Unit
@@ -64,10 +65,10 @@ def echo(line: str) -> None:
 # ----------------------------------------------------------------------------- plan
 def unit_state(out: Path, unit: Unit) -> str:
     """What running `unit` would do now: 'done', 'resume from step N' or 'start'."""
-    from adarl.train.run_folder import checkpoint_dirs
+    from adarl.runs.checkpoints import checkpoint_dirs
 
     run_dir = out / unit.id
-    if (run_dir / "DONE").exists():
+    if (run_dir / DONE_FILE).exists():
         return "done"
     found = checkpoint_dirs(run_dir)
     return f"resume from step {int(found[-1].name.split('_')[1]):,}" if found else "start"
@@ -93,11 +94,11 @@ def plan_text(sweep: Sweep, out: Path, where: str) -> str:
 def check_existing_runs(sweep: Sweep, out: Path) -> None:
     """A one-line UsageError if a unit's run folder already holds a run trained with other
     settings (the manifest aside, a sweep never resumes or skips someone else's run)."""
-    from adarl.train.run_folder import config_from_run
+    from adarl.runs.folder import config_from_run
 
     for unit in sweep.units:
         run_dir = out / unit.id
-        if not (run_dir / "config.yaml").exists():
+        if not (run_dir / CONFIG_FILE).exists():
             continue
         _, found = config_from_run(run_dir)
         for f in dataclasses.fields(unit.config):
@@ -273,7 +274,7 @@ class SweepRun:
             returncode, error = None, _one_line(f"{type(exc).__name__}: {exc}")
         if error is None and returncode != 0:
             error = exit_text(returncode)
-        done = (self.out / unit.id / "DONE").exists()
+        done = (self.out / unit.id / DONE_FILE).exists()
         if returncode == 0 and not done:
             error = "exited without finishing (no DONE)"
         elapsed = self._elapsed(unit)
@@ -335,7 +336,7 @@ class SweepRun:
         for unit, _ in self.in_flight.values():
             if self.manifest.unit(unit.id)["status"] != "running":
                 continue
-            found = last_train_row(self.out / unit.id / "train.csv")
+            found = last_train_row(self.out / unit.id / TRAIN_CSV)
             start = self.start_step.get(unit.id, 0)
             if found is None or found[0] <= start:  # nothing logged by this attempt yet
                 self.line(unit, "running", f"starting at step {start:,} (compiling, loading)")

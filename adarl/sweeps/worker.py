@@ -24,6 +24,8 @@ import sys
 import time
 from pathlib import Path
 
+from adarl.runs.layout import DONE_FILE
+
 EXIT_BUSY = 75  # another process holds the unit's lock
 
 
@@ -55,11 +57,12 @@ def main(argv: list[str] | None = None) -> int:
         )
         return EXIT_BUSY
 
-    from adarl.train.io import atomic_write_json, checkpoint_dirs
+    from adarl.files import atomic_write_json
+    from adarl.runs.checkpoints import checkpoint_dirs
 
     run_dir = Path(args.run_dir)
     step = 0
-    if (run_dir / "DONE").exists():
+    if (run_dir / DONE_FILE).exists():
         mode = "done"
     elif checkpoint_dirs(run_dir):
         mode, step = "resume", int(checkpoint_dirs(run_dir)[-1].name.split("_")[1])

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from adarl.files import atomic_write_bytes
 from adarl.theory.linalg import picard_limits
 from adarl.theory.synthetic import COLUMNS, Sweep, best_rank, summarise
-from adarl.train.io import atomic_write_bytes
 
 PICARD_COLUMNS = ["system", "i", "sigma", "abs_ub", "picard_limit", "picard_constant"]
 

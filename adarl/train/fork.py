@@ -26,8 +26,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from adarl.errors import UsageError
-from adarl.train import io
-from adarl.train import run_folder as rf
+from adarl.files import atomic_write_bytes
+from adarl.runs import checkpoints, folder
+from adarl.runs.layout import (
+    ARRAYS_FILE,
+    META_FILE,
+    PRE_TRUNCATION,
+    PRE_TRUNCATION_DIR,
+    SPECTRA_DIR,
+    STEP_PREFIX,
+    checkpoint_step,
+)
+from adarl.runs.lock import RunLock
+from adarl.runs.provenance import write_environment
 
 # Config fields a fork may change: what the truncations from the fork point on do, the budget and
 # the learning-rate schedule, and how the run is evaluated, logged and checkpointed. Everything
@@ -78,7 +89,7 @@ def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) ->
     from adarl.algos import registry
 
     parent = Path(parent).resolve()
-    algo, before = rf.config_from_run(parent)
+    algo, before = folder.config_from_run(parent)
     if registry.get(algo).trainer != SAC_TRAINER:
         family = [a.name for a in registry.ALGORITHMS.values() if a.trainer == SAC_TRAINER]
         raise UsageError(
@@ -92,7 +103,7 @@ def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) ->
             f"{parent} has no checkpoint at step {step}; fork points: {describe_points(points)}"
         )
     checkpoint = points[step]
-    pre = checkpoint.parent.name == Path(rf.PRE_TRUNCATION_DIR).name
+    pre = checkpoint.parent.name == PRE_TRUNCATION
     if config.total_steps < step or (config.total_steps == step and not pre):
         raise UsageError(
             f"total-steps {config.total_steps} leaves nothing to train after the fork at step "
@@ -101,7 +112,7 @@ def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) ->
     record = {
         "from": str(parent),
         "step": step,
-        "checkpoint": "pre_truncation" if pre else "end_of_chunk",
+        "checkpoint": PRE_TRUNCATION if pre else "end_of_chunk",
         "changed": changed,
     }
     return Fork(parent, step, checkpoint, config.algo, config, record)
@@ -130,14 +141,16 @@ def fork_step(config, at: str | int) -> int:
 def fork_points(run_dir: Path) -> dict[int, Path]:
     """Every step a run can be forked at -> its checkpoint folder; at a step with both, the
     pre-truncation checkpoint (the state before that step's truncation)."""
-    points = {_step(p): p for p in io.checkpoint_dirs(run_dir)}
-    points.update({_step(p): p for p in io.checkpoint_dirs(run_dir, io.PRE_TRUNCATION_DIR)})
+    points = {checkpoint_step(p): p for p in checkpoints.checkpoint_dirs(run_dir)}
+    points.update(
+        {checkpoint_step(p): p for p in checkpoints.checkpoint_dirs(run_dir, PRE_TRUNCATION_DIR)}
+    )
     return dict(sorted(points.items()))
 
 
 def describe_points(points: Mapping[int, Path]) -> str:
     """`950 (pre-truncation), 1000, 1500`, or `none`."""
-    pre = Path(rf.PRE_TRUNCATION_DIR).name
+    pre = PRE_TRUNCATION
     return (
         ", ".join(
             f"{s}{' (pre-truncation)' if p.parent.name == pre else ''}" for s, p in points.items()
@@ -172,7 +185,7 @@ def forked_config(algo: str, parent, changes: Mapping[str, object]):
         values["algo"] = CONTROL_PAIR[bool(values["apply_cuts"])]
     child = dataclasses.replace(parent, **values).validate()
     registry.get(child.algo)
-    then, now = io.config_record(parent), io.config_record(child)
+    then, now = checkpoints.config_record(parent), checkpoints.config_record(child)
     changed = {k: {"from": then[k], "to": now[k]} for k in now if then.get(k) != now[k]}
     return child, changed
 
@@ -181,7 +194,7 @@ def check_forkable(parent, child) -> dict:
     """The fields in which config `child` differs from `parent` ({from, to}), or a one-line
     UsageError naming the first one a fork cannot change (the sweeps check their fork units
     with it)."""
-    then, now = io.config_record(parent), io.config_record(child)
+    then, now = checkpoints.config_record(parent), checkpoints.config_record(child)
     changed = {k: {"from": then.get(k), "to": now[k]} for k in now if then.get(k) != now[k]}
     if "algo" in changed and set(CONTROL_PAIR.values()) != {then["algo"], now["algo"]}:
         raise UsageError(
@@ -203,15 +216,15 @@ def write(fork: Fork, out: Path, command: str) -> None:
     atomic: a fork folder without a checkpoint is incomplete, which `--resume` refuses and the
     sweeps' worker makes again)."""
     out = Path(out)
-    io.check_new_run_dir(out)
-    arrays, meta = io.load_checkpoint(fork.checkpoint)
+    folder.check_new_run_dir(out)
+    arrays, meta = checkpoints.load_checkpoint(fork.checkpoint)
     if int(meta["step"]) != fork.step:
         raise UsageError(f"checkpoint {fork.checkpoint} is of step {meta['step']}, not {fork.step}")
-    _, parent_config = rf.config_from_run(fork.parent)
-    io.check_resume_config(fork.parent, meta, parent_config)  # the checkpoint is of this run
-    with io.RunLock(out) as lock:
+    _, parent_config = folder.config_from_run(fork.parent)
+    folder.check_resume_config(fork.parent, meta, parent_config)  # the checkpoint is of this run
+    with RunLock(out) as lock:
         lock.acquire(new=True)
-        for name, offset in rf.csv_offsets(meta).items():
+        for name, offset in checkpoints.csv_offsets(meta).items():
             source = fork.parent / name
             data = source.read_bytes()[:offset] if source.exists() else b""
             if len(data) < offset:
@@ -219,28 +232,24 @@ def write(fork: Fork, out: Path, command: str) -> None:
                     f"{source} is shorter ({len(data)} bytes) than its checkpoint at step "
                     f"{fork.step} says ({offset})"
                 )
-            io.atomic_write_bytes(out / name, data)
-        pre = fork.record["checkpoint"] == "pre_truncation"
-        for spectrum in sorted((fork.parent / "spectra").glob("step_*.npz")):
+            atomic_write_bytes(out / name, data)
+        pre = fork.record["checkpoint"] == PRE_TRUNCATION
+        for spectrum in sorted((fork.parent / SPECTRA_DIR).glob(f"{STEP_PREFIX}*.npz")):
             step = int(spectrum.stem.split("_")[1])
             if step < fork.step or (step == fork.step and not pre):
-                io.atomic_write_bytes(out / "spectra" / spectrum.name, spectrum.read_bytes())
-        from adarl.train.provenance import read_environment
+                atomic_write_bytes(out / SPECTRA_DIR / spectrum.name, spectrum.read_bytes())
+        from adarl.runs.provenance import read_environment
 
         parent_env = {"parent_environment": read_environment(fork.parent)}
-        io.write_environment(out, {"fork": {**fork.record, **parent_env}})
-        rf.write_config(out, fork.config, fork.algo, command, fork=fork.record)
+        write_environment(out, {"fork": {**fork.record, **parent_env}})
+        folder.write_config(out, fork.config, fork.algo, command, fork=fork.record)
         files = {
             p.name: p.read_bytes()
             for p in sorted(fork.checkpoint.iterdir())
-            if p.name not in ("arrays.npz", "meta.json")
+            if p.name not in (ARRAYS_FILE, META_FILE)
         }
         meta = {k: v for k, v in meta.items() if k != "arrays_sha256"}
-        meta.update(algo=fork.algo, config=io.config_record(fork.config), fork=fork.record)
-        io.save_checkpoint(
+        meta.update(algo=fork.algo, config=checkpoints.config_record(fork.config), fork=fork.record)
+        checkpoints.save_checkpoint(
             out, fork.step, arrays, meta, keep=fork.config.keep_checkpoints, files=files
         )
-
-
-def _step(path: Path) -> int:
-    return int(path.name.split("_")[1])

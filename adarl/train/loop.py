@@ -39,13 +39,11 @@ from pathlib import Path
 import numpy as np
 
 from adarl.errors import UsageError
-from adarl.train import io
-from adarl.train import run_folder as rf
+from adarl.runs import checkpoints, codec, folder, layout, logs
+from adarl.runs.lock import RunLock
+from adarl.train.guards import DivergenceWatch
 
-# meta.json `phase` of a checkpoint taken after a step's update and before the rest of that
-# step's work (a truncation): restoring it continues with that work, not a new step
-PRE_TRUNCATION = "pre_truncation"
-LOGS = (rf.EPISODES_CSV, rf.TRAIN_CSV, rf.EVAL_CSV)
+LOGS = (layout.EPISODES_CSV, layout.TRAIN_CSV, layout.EVAL_CSV)
 
 
 class BestPolicies:
@@ -79,7 +77,9 @@ class BestPolicies:
         return meta | ({"from_step": self.from_step} if self.from_step else {})
 
     def checkpoint_files(self) -> dict[str, bytes]:
-        return {f"best_policy_seed_{s}.npz": self.files[s] for s in self.seeds if s in self.files}
+        return {
+            layout.best_policy_file_name(s): self.files[s] for s in self.seeds if s in self.files
+        }
 
     def restore(self, meta: dict, checkpoint: Path) -> None:
         """Read the best back from a checkpoint (none recorded: keep from the checkpoint's step)."""
@@ -88,7 +88,7 @@ class BestPolicies:
             return
         self.from_step = int(meta["best"].get("from_step", 0))
         for key, record in (meta["best"].get("seeds") or {}).items():
-            path = Path(checkpoint) / f"best_policy_seed_{int(key)}.npz"
+            path = Path(checkpoint) / layout.best_policy_file_name(int(key))
             try:
                 self.files[int(key)] = path.read_bytes()
             except OSError:
@@ -104,13 +104,13 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
     (docs/reliability.md)."""
     run_dir = Path(run_dir)
     config.validate()
-    with io.RunLock(run_dir) as lock:
+    with RunLock(run_dir) as lock:
         if resume:
-            opened = rf.open_to_resume(run_dir, lock, config)
+            opened = folder.open_to_resume(run_dir, lock, config)
             if opened is None:  # complete
                 return run_dir
             path, arrays, meta = opened
-            if meta is None and rf.load_config(run_dir).get("fork"):  # written first at last
+            if meta is None and folder.load_config(run_dir).get("fork"):  # written first at last
                 raise UsageError(
                     f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
                 )
@@ -121,9 +121,9 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
             else:
                 loop.restore(path, arrays, meta)
         else:
-            io.check_new_run_dir(run_dir)
+            folder.check_new_run_dir(run_dir)
             learner = make_learner(config)  # unknown tasks or dynamics fail before any write
-            rf.start_new(run_dir, lock, config, learner.algo, command)
+            folder.start_new(run_dir, lock, config, learner.algo, command)
             loop = Loop(learner, run_dir, progress)
             learner.fresh()
             loop.open_logs(None)
@@ -143,14 +143,14 @@ class Loop:
         self.seeds = list(learner.seeds)
         self.step = 0
         self.best = BestPolicies(self.seeds)
-        self.watch = io.DivergenceWatch(run_dir, self.config.on_divergence)
+        self.watch = DivergenceWatch(run_dir, self.config.on_divergence)
         self.logs, self.tb, self.recent_returns = {}, None, []
 
     def restore(self, path: Path, arrays: dict, meta: dict) -> None:
         self.step = int(meta["step"])
         self.learner.restore(arrays, meta)
         self.best.restore(meta, path)
-        self.open_logs(rf.csv_offsets(meta))
+        self.open_logs(checkpoints.csv_offsets(meta))
 
     # ------------------------------------------------------------------ logs
     def log_names(self, resuming: bool) -> list[str]:
@@ -161,16 +161,18 @@ class Loop:
         the checkpoint), first cut each CSV back to what the checkpoint had seen."""
         d = self.run_dir
         for name, offset in (offsets or {}).items():
-            io.CsvLog.truncate(d / name, offset)
+            logs.CsvLog.truncate(d / name, offset)
         params = self.learner.envs[0].dynamics_params or {}
         columns = {
-            rf.EPISODES_CSV: rf.episode_columns(params),
-            rf.TRAIN_CSV: self.learner.train_columns,
-            rf.EVAL_CSV: rf.EVAL_COLUMNS,
+            layout.EPISODES_CSV: logs.episode_columns(params),
+            layout.TRAIN_CSV: self.learner.train_columns,
+            layout.EVAL_CSV: logs.EVAL_COLUMNS,
             **self.learner.extra_logs(d, offsets is not None),
         }
-        self.logs = {name: io.CsvLog(d / name, cols) for name, cols in columns.items()}
-        self.tb = io.Scalars(d / "tb", purge_step=self.step if offsets is not None else None)
+        self.logs = {name: logs.CsvLog(d / name, cols) for name, cols in columns.items()}
+        self.tb = logs.Scalars(
+            d / layout.TB_DIR, purge_step=self.step if offsets is not None else None
+        )
 
     def close(self) -> None:
         for log in self.logs.values():
@@ -191,8 +193,8 @@ class Loop:
             "length": int(length),
         }
         row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
-        self.logs[rf.EPISODES_CSV].write(row)
-        self.tb.write(step, {rf.tb_episode_return(seed): ep_return})
+        self.logs[layout.EPISODES_CSV].write(row)
+        self.tb.write(step, {logs.tb_episode_return(seed): ep_return})
         self.recent_returns.append(float(ep_return))
         if not math.isfinite(ep_return):
             self.watch.note("episode return", [seed])
@@ -204,13 +206,13 @@ class Loop:
             self.tb.write(
                 self.step,
                 {
-                    rf.tb_train(k, row["seed"]): v
+                    logs.tb_train(k, row["seed"]): v
                     for k, v in row.items()
                     if k not in ("step", "seed") and math.isfinite(v)
                 },
             )
         if rows:
-            self.logs[rf.TRAIN_CSV].write(rows)
+            self.logs[layout.TRAIN_CSV].write(rows)
 
     def evaluate(self) -> None:
         """Every seed's policy on every evaluation dynamics, `eval_episodes` episodes from seed
@@ -230,9 +232,9 @@ class Loop:
                     seed=1_000_000 + seed,
                     **self.learner.env_options,
                 )
-                self.logs[rf.EVAL_CSV].write(rf.eval_rows(self.step, seed, label, rows))
+                self.logs[layout.EVAL_CSV].write(logs.eval_rows(self.step, seed, label, rows))
                 mean_return = float(np.mean([r["return"] for r in rows]))
-                self.tb.write(self.step, {rf.tb_eval_return(label, seed): mean_return})
+                self.tb.write(self.step, {logs.tb_eval_return(label, seed): mean_return})
                 if label == "nominal":
                     self.best.offer(seed, self.step, mean_return, arrays)
 
@@ -248,12 +250,12 @@ class Loop:
         from adarl.policy import to_bytes
 
         arrays, extra = self.learner.checkpoint_state()
-        meta = rf.checkpoint_meta(
+        meta = checkpoints.checkpoint_meta(
             self.learner.algo,
             self.config,
             self.seeds,
             self.learner.rngs,
-            rf.encode_env_states(self.learner.envs, arrays),
+            codec.encode_env_states(self.learner.envs, arrays),
             {name: log.offset() for name, log in self.logs.items()},
         )
         meta.update(extra)
@@ -261,18 +263,20 @@ class Loop:
         if phase is not None:
             meta["phase"] = phase
         files = {
-            f"policy_seed_{seed}.npz": to_bytes(policy)
+            layout.policy_file_name(seed): to_bytes(policy)
             for seed, policy in zip(self.seeds, self.learner.policies())
         }
         files.update(self.best.checkpoint_files())
-        rf.save_checkpoint(
+        checkpoints.save_checkpoint(
             self.run_dir,
             self.step,
             arrays,
             meta,
-            keep=0 if phase == PRE_TRUNCATION else self.config.keep_checkpoints,
+            keep=0 if phase == layout.PRE_TRUNCATION else self.config.keep_checkpoints,
             files=files,
-            folder=rf.PRE_TRUNCATION_DIR if phase == PRE_TRUNCATION else rf.CHECKPOINT_DIR,
+            folder=layout.PRE_TRUNCATION_DIR
+            if phase == layout.PRE_TRUNCATION
+            else layout.CHECKPOINT_DIR,
         )
 
     def end_of_step(self) -> None:
@@ -311,7 +315,7 @@ class Loop:
                 bar.update(self.step - bar.n)
         if bar is not None:
             bar.close()
-        rf.finish(self.run_dir, self.step)
+        folder.finish(self.run_dir, self.step)
 
 
 def _progress(total: int, start: int, enabled: bool, desc: str):

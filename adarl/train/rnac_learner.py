@@ -35,8 +35,8 @@ from adarl.algos.rnac import (
     welford,
 )
 from adarl.errors import UsageError
-from adarl.train import io, loop
-from adarl.train import run_folder as rf
+from adarl.runs import checkpoints, codec
+from adarl.train import loop
 
 
 # ============================================================================ double sampling
@@ -229,21 +229,21 @@ class RNACLearner:
             self.host.obs_norm[i] = _observe(self.host, i, obs, self.config)
 
     def restore(self, arrays: dict, meta: dict) -> None:
-        self.state = io.unflatten_tree(self.state, arrays, "state")
+        self.state = codec.unflatten_tree(self.state, arrays, "state")
         self.update_keys = arrays["update_keys"]
         for f in dataclasses.fields(Host):
             if arrays[f"host/{f.name}"].shape != getattr(self.host, f.name).shape:
                 raise UsageError(f"checkpoint array host/{f.name} does not match this config")
             setattr(self.host, f.name, arrays[f"host/{f.name}"].copy())
-        for rng, s in zip(self.rngs, rf.rng_states(meta)):
+        for rng, s in zip(self.rngs, checkpoints.rng_states(meta)):
             rng.bit_generator.state = s
         for env, s, enc in zip(self.envs, self.seeds, meta["env_states"]):
             env.reset(seed=s)
-            env.set_state(rf.decode_env_state(enc, arrays))
+            env.set_state(codec.decode_env_state(enc, arrays))
         self.params = host_params(self.state)
 
     def checkpoint_state(self) -> tuple[dict, dict]:
-        arrays = io.flatten_tree(self.state, "state")
+        arrays = codec.flatten_tree(self.state, "state")
         arrays["update_keys"] = np.asarray(self.update_keys)
         host = self.host
         arrays.update({f"host/{f.name}": getattr(host, f.name) for f in dataclasses.fields(Host)})

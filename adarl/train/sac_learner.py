@@ -39,10 +39,11 @@ import numpy as np
 
 from adarl.algos import replay, sac
 from adarl.errors import UsageError
-from adarl.train import io, loop
-from adarl.train import run_folder as rf
+from adarl.files import atomic_write_bytes
+from adarl.runs import checkpoints, codec, layout
+from adarl.train import loop
+from adarl.train.guards import check_memory
 
-TRUNCATIONS_CSV = "truncations.csv"
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
 # relative output error on the replay sample; decision: accepted, retained or unchanged
@@ -164,7 +165,7 @@ class SACLearner:
         self.shared_widths = config.lanes > 0
         self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
         self.truncation_steps = set(sac.truncation_steps(config))
-        io.check_memory(
+        check_memory(
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             f"the replay buffers ({self.n} seeds x buffer-size {config.buffer_size})",
         )
@@ -255,7 +256,7 @@ class SACLearner:
             return state if lane.spec == self.spec else sac.resize_bottlenecks(self.spec, state)
 
         state = self.gather(stored)
-        arrays = io.flatten_tree(state, "state")
+        arrays = codec.flatten_tree(state, "state")
         bufs = [jax.device_get(lane.state["buffer"]) for lane in self.lanes]
         # only the rows written so far (plus the provisional one) are worth saving
         used = int(min(bufs[0]["obs"].shape[1], max(int(np.max(b["size"])) for b in bufs) + 1))
@@ -289,7 +290,7 @@ class SACLearner:
         template = jax.tree_util.tree_map(
             lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
         )
-        state = io.unflatten_tree(template, arrays, "state")
+        state = codec.unflatten_tree(template, arrays, "state")
         expected = {"obs": (self.spec.obs_dim,), "act": (self.spec.act_dim,)}
         buffers = {}
         for k in BUFFER_ROW_KEYS:
@@ -308,25 +309,25 @@ class SACLearner:
             lane.infos = [
                 {name: arrays[f"{PENDING}/{k}/{name}"][j] for name in names} for j in range(n)
             ]
-        self.resumes_mid_step = meta.get("phase") == loop.PRE_TRUNCATION
+        self.resumes_mid_step = meta.get("phase") == layout.PRE_TRUNCATION
         self.obs = arrays["host/obs"].astype(np.float32)
         self.ep_return = arrays["host/ep_return"].copy()
         self.ep_length = arrays["host/ep_length"].copy()
-        self.rngs = rf.restore_rngs(meta, self.seeds)
+        self.rngs = checkpoints.restore_rngs(meta, self.seeds)
         for env, env_state in zip(self.envs, meta["env_states"]):
-            env.set_state(rf.decode_env_state(env_state, arrays))
+            env.set_state(codec.decode_env_state(env_state, arrays))
 
     def extra_logs(self, run_dir: Path, resuming: bool) -> dict[str, list[str]]:
         """AdaRL's truncations.csv (a run from before the retain clause keeps its columns)."""
         if not self.config.adapt_rank:
             return {}
-        path = run_dir / TRUNCATIONS_CSV
+        path = run_dir / layout.TRUNCATIONS_CSV
         if resuming and path.exists() and path.stat().st_size:
             with open(path, encoding="utf-8") as f:
                 header = f.readline().strip().split(",")
             if sorted(header) == sorted(LEGACY_TRUNCATION_COLUMNS):
-                return {TRUNCATIONS_CSV: LEGACY_TRUNCATION_COLUMNS}
-        return {TRUNCATIONS_CSV: TRUNCATION_COLUMNS}
+                return {layout.TRUNCATIONS_CSV: LEGACY_TRUNCATION_COLUMNS}
+        return {layout.TRUNCATIONS_CSV: TRUNCATION_COLUMNS}
 
     # ------------------------------------------------------------------ acting and learning
     def host_actors(self, lane: Lane) -> list:
@@ -411,7 +412,7 @@ class SACLearner:
         if c.checkpoint_before_truncation and not self.resumes_mid_step:
             finite = self.gather(lambda lane: _finite_parameters(lane.state))
             if all(np.all(ok) for ok in finite.values()) and not run.watch.found:
-                run.save(phase=loop.PRE_TRUNCATION)  # never with non-finite parameters
+                run.save(phase=layout.PRE_TRUNCATION)  # never with non-finite parameters
         self.resumes_mid_step = False
         old = self.gather(_ranks)
         reports = []
@@ -427,7 +428,9 @@ class SACLearner:
         spectra = {name: np.asarray(item[0]) for name, item in report.items()}
         buf = BytesIO()
         np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
-        io.atomic_write_bytes(run.run_dir / "spectra" / f"step_{run.step:012d}.npz", buf.getvalue())
+        atomic_write_bytes(
+            run.run_dir / layout.SPECTRA_DIR / layout.spectrum_file(run.step), buf.getvalue()
+        )
         rows = []
         for name, (_, proposed, new, candidate, error) in report.items():
             for i, seed in enumerate(self.seeds):
@@ -446,7 +449,7 @@ class SACLearner:
                         ),
                     }
                 )
-        log = run.logs[TRUNCATIONS_CSV]
+        log = run.logs[layout.TRUNCATIONS_CSV]
         log.write([{k: row[k] for k in log.columns} for row in rows])
         if c.compact_bottlenecks:
             self.narrow_bottlenecks(self.gather(_ranks))

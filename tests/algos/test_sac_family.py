@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from adarl.algos import SAC_FAMILY, sac
-from adarl.train import io, sac_learner
+from adarl.runs.logs import read_csv
+from adarl.train import sac_learner
 
 # adarl runs, crashes and resumes in tests/train/test_sac_learner.py
 ALGOS = {
@@ -50,7 +51,7 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
         sac_learner.train(config, tmp_path / "run", progress=False)
     monkeypatch.setattr(sac_learner.SACLearner, "env_step", original)
     sac_learner.train(config, tmp_path / "run", resume=True, progress=False)
-    rows = io.read_csv(tmp_path / "run" / "train.csv")
+    rows = read_csv(tmp_path / "run" / "train.csv")
     assert [int(r["step"]) for r in rows] == [100, 100, 200, 200, 300, 300, 400, 400]
     last = rows[-1]
     assert np.isfinite(float(last["loss_q"])) and np.isfinite(float(last["loss_pi"]))
@@ -61,7 +62,7 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
     if algo == "sac-fixed-rank":
         assert {last["rank_actor_1"], last["rank_q1_1"], last["rank_q2_1"]} == {"7"}
     assert (tmp_path / "run" / "DONE").exists()
-    eval_rows = io.read_csv(tmp_path / "run" / "eval.csv")
+    eval_rows = read_csv(tmp_path / "run" / "eval.csv")
     assert {r["seed"] for r in eval_rows} == {"0", "1"}
 
 
@@ -83,7 +84,7 @@ def test_runs_with_one_seed(algo, tmp_path):
         **ALGOS[algo],
     }
     sac_learner.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
-    rows = io.read_csv(tmp_path / "run" / "train.csv")
+    rows = read_csv(tmp_path / "run" / "train.csv")
     assert [int(r["step"]) for r in rows] == [100, 200]
     assert all(np.isfinite(float(r["loss_q"])) for r in rows)
     assert (tmp_path / "run" / "checkpoints").is_dir() and (tmp_path / "run" / "DONE").exists()

@@ -11,8 +11,10 @@ from adarl.cli.main import main
 from adarl.errors import UsageError
 from adarl.evaluation import evaluate
 from adarl.evaluation.runs import load_run
+from adarl.runs import checkpoints
+from adarl.runs.logs import read_csv
 from adarl.sweeps import spec
-from adarl.train import io, sac_learner
+from adarl.train import sac_learner
 
 
 @pytest.mark.parametrize(
@@ -118,12 +120,12 @@ def test_resume_is_bit_exact_under_ompo_physics_and_v4_models(tmp_path, monkeypa
     config = (crashed / "config.yaml").read_text()
     assert "physics: ompo" in config and "model_version: v4" in config
     for name in ("episodes.csv", "train.csv", "eval.csv"):
-        rows = [io.read_csv(Path(d) / name) for d in (full, crashed)]
+        rows = [read_csv(Path(d) / name) for d in (full, crashed)]
         drop = ("steps_per_s",)
         a, b = ([{k: v for k, v in r.items() if k not in drop} for r in rs] for rs in rows)
         assert a == b, name
-    a, _ = io.load_checkpoint(io.latest_checkpoint(full))
-    b, _ = io.load_checkpoint(io.latest_checkpoint(crashed))
+    a, _ = checkpoints.load_checkpoint(checkpoints.latest_checkpoint(full))
+    b, _ = checkpoints.load_checkpoint(checkpoints.latest_checkpoint(crashed))
     assert a.keys() == b.keys()
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)

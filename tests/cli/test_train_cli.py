@@ -295,7 +295,7 @@ def test_fork_the_control_at_the_first_truncation(tmp_path, capsys):
     assert "done: adarl-control on hopper" in capsys.readouterr().out
     import yaml
 
-    from adarl.train.io import read_csv
+    from adarl.runs.logs import read_csv
 
     config = yaml.safe_load((child / "config.yaml").read_text())
     assert config["algo"] == "adarl-control" and config["apply_cuts"] is False

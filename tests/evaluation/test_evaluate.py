@@ -12,9 +12,10 @@ from adarl.errors import UsageError
 from adarl.evaluation import evaluate
 from adarl.evaluation.collect import final_scores
 from adarl.evaluation.export import export_policy
-from adarl.evaluation.runs import find_runs, load_run, policy_file
+from adarl.evaluation.runs import find_runs, load_run
 from adarl.evaluation.synthetic import policy_arrays, write_run
 from adarl.policy import load, save
+from adarl.runs.checkpoints import policy_file
 
 pytest.importorskip("mujoco")
 
@@ -137,7 +138,7 @@ def test_numpy_policy_round_trip_by_hand(tmp_path):
 def test_export_copies_the_policy_and_counts_parameters(tmp_path):
     run = load_run(write_run(tmp_path, "r", seeds=(0, 1), algo="sac-fixed-rank", rank=4))
     done = export_policy(run, 1, tmp_path / "out" / "policy.npz")
-    source = policy_file(run, 1)
+    source = policy_file(run.path, 1)
     assert done.out.read_bytes() == source.read_bytes()
     obs = np.ones(11, np.float32)
     assert np.array_equal(load(done.out)(obs), load(source)(obs))

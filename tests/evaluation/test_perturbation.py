@@ -166,10 +166,12 @@ def test_binned_rings_pool_sizes_by_upper_edge():
 def write_suite_evaluation(run_dir, returns_of, seeds=(0, 1)):
     """Store a constructed `paper` suite evaluation (2 episodes per point, mean = returns_of)
     in a synthetic Hopper run, as `adarl evaluate --suite paper` would (no episode is run)."""
-    from adarl.evaluation.runs import checkpoint_step, find_runs, select_checkpoint
+    from adarl.evaluation.runs import find_runs
+    from adarl.runs.checkpoints import select_checkpoint
+    from adarl.runs.layout import checkpoint_step
 
     (run,) = find_runs([run_dir])
-    step = checkpoint_step(select_checkpoint(run))
+    step = checkpoint_step(select_checkpoint(run.path))
     rows = []
     for seed, (t, f) in itertools.product(seeds, paper_grid()):
         size = perturbation.perturbation_size([(t, f)], CENTRE, HALF)[0]

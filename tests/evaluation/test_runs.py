@@ -1,7 +1,6 @@
 """Finding run folders, method labels, checkpoints and policy files."""
 
 import pytest
-import yaml
 
 from adarl.errors import UsageError
 from adarl.evaluation import runs
@@ -29,9 +28,15 @@ def test_not_a_run(tmp_path):
         runs.load_run(tmp_path / "empty")
     bad = tmp_path / "bad"
     bad.mkdir()
-    (bad / "config.yaml").write_text("task: hopper\n")
+    (bad / "config.yaml").write_text("algo: sac\ntask: hopper\n")
+    with pytest.raises(UsageError, match="run format None; this adarl .* reads format 1"):
+        runs.load_run(bad)
+    (bad / "config.yaml").write_text("task: hopper\nformat_version: 1\n")
     with pytest.raises(UsageError, match="no 'algo' field"):
         runs.load_run(bad)
+    (bad / "config.yaml").write_text("algo: sac\ntask: hopper\nformat_version: 2\n")
+    with pytest.raises(UsageError, match="run format 2 by a newer adarl"):
+        runs.load_run(bad)  # checked as a resume checks it
 
 
 def test_nested_config_sections_and_seed_forms():
@@ -86,23 +91,6 @@ def test_the_same_run_twice_is_refused(tmp_path):
     write_run(tmp_path / "y", "a", seeds=(1, 2))
     with pytest.raises(UsageError, match=r"both 'adarl' on hopper with seed\(s\) \[1\]"):
         runs.find_runs([tmp_path])
-
-
-def test_checkpoints_and_policy_files(tmp_path):
-    run = runs.load_run(write_run(tmp_path, "a", seeds=(3, 5), total_steps=400))
-    ckpt = runs.select_checkpoint(run)
-    assert runs.checkpoint_step(ckpt) == 400
-    assert list(runs.policy_files(ckpt)) == [3, 5]
-    assert runs.policy_file(run, 5).name == "policy_seed_5.npz"
-    with pytest.raises(UsageError, match="has no seed 4; it has seeds: 3, 5"):
-        runs.policy_file(run, 4)
-    with pytest.raises(UsageError, match="no checkpoint at step 7; it has: 400"):
-        runs.select_checkpoint(run, 7)
-    bare = runs.load_run(write_run(tmp_path, "b", checkpoint=False))
-    with pytest.raises(UsageError, match="has no complete checkpoint"):
-        runs.select_checkpoint(bare)
-    config = yaml.safe_load((run.path / "config.yaml").read_text())
-    assert config["command"].startswith("adarl train")
 
 
 def test_rank_settling_reads_cuts_retained_cuts_and_the_last_change(tmp_path):

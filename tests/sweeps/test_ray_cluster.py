@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adarl.train import io
+from adarl.runs import checkpoints
+from adarl.runs.logs import read_csv
 
 pytestmark = pytest.mark.cluster  # not in the default run: `pytest -m cluster` (pyproject.toml)
 pytest.importorskip("ray")
@@ -181,7 +182,7 @@ def _unit_on_worker_node(out: Path, cluster: Cluster, sweep, units, timeout_s: f
             if not marker.exists():
                 continue
             pid = json.loads(marker.read_text())["pid"]
-            if raylet in _ancestors(pid, table) and io.checkpoint_dirs(out / uid):
+            if raylet in _ancestors(pid, table) and checkpoints.checkpoint_dirs(out / uid):
                 assert not (out / uid / "DONE").exists(), "the unit finished before the kill"
                 return uid
         time.sleep(0.1)
@@ -189,7 +190,7 @@ def _unit_on_worker_node(out: Path, cluster: Cluster, sweep, units, timeout_s: f
 
 
 def _csv(run_dir: Path, name: str) -> list[dict]:
-    return [{k: v for k, v in r.items() if k != "steps_per_s"} for r in io.read_csv(run_dir / name)]
+    return [{k: v for k, v in r.items() if k != "steps_per_s"} for r in read_csv(run_dir / name)]
 
 
 def test_a_sweep_survives_losing_a_cluster_node(tmp_path, cluster, write_spec, assert_complete):
@@ -238,8 +239,8 @@ def test_a_sweep_survives_losing_a_cluster_node(tmp_path, cluster, write_spec, a
     assert done.returncode == 0, done.stderr
     for name in ("episodes.csv", "train.csv", "eval.csv"):
         assert _csv(out / lost, name) == _csv(reference, name), name
-    a, _ = io.load_checkpoint(io.latest_checkpoint(out / lost))
-    b, _ = io.load_checkpoint(io.latest_checkpoint(reference))
+    a, _ = checkpoints.load_checkpoint(checkpoints.latest_checkpoint(out / lost))
+    b, _ = checkpoints.load_checkpoint(checkpoints.latest_checkpoint(reference))
     assert a.keys() == b.keys()
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)

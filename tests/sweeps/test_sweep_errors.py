@@ -9,6 +9,8 @@ import time
 import pytest
 
 from adarl.cli.main import main
+from adarl.runs import folder
+from adarl.runs.layout import RUN_FORMAT_VERSION
 from adarl.sweeps import manifest, spec
 
 
@@ -115,15 +117,14 @@ def test_a_folder_in_use_by_another_sweep_is_refused(tmp_path, capsys, write_spe
 
 def test_a_run_folder_with_other_settings_is_refused(tmp_path, capsys, write_spec):
     from adarl import __version__
-    from adarl.train import io, run_folder
 
     spec_file = write_spec(tmp_path / "s.yaml")
     unit = spec.load(str(spec_file)).units[0]
     other = spec.build_config([*unit.train_args, "--total-steps", "2000"])
     run_dir = tmp_path / "out" / unit.id
     run_dir.mkdir(parents=True)
-    extra = {"format_version": io.RUN_FORMAT_VERSION, "adarl_version": __version__}
-    (run_dir / "config.yaml").write_text(run_folder.config_yaml(other, extra))
+    extra = {"format_version": RUN_FORMAT_VERSION, "adarl_version": __version__}
+    (run_dir / "config.yaml").write_text(folder.config_yaml(other, extra))
     err = _run(capsys, spec_file, "--out", tmp_path / "out")
     assert "holds a run with other settings (total_steps: 2000 there, 1000 in this sweep)" in err
     assert not (tmp_path / "out" / "manifest.json").exists()

@@ -11,7 +11,10 @@ import yaml
 
 from adarl.algos import SAC_FAMILY, sac
 from adarl.errors import UsageError
-from adarl.train import fork, io, loop, sac_learner
+from adarl.runs import checkpoints
+from adarl.runs.layout import PRE_TRUNCATION, PRE_TRUNCATION_DIR
+from adarl.runs.logs import read_csv
+from adarl.train import fork, sac_learner
 
 CSVS = ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")
 
@@ -36,14 +39,14 @@ def tiny(algo="adarl", **overrides):
 
 
 def rows(run_dir, name):
-    found = io.read_csv(run_dir / name)
+    found = read_csv(run_dir / name)
     for row in found:
         row.pop("steps_per_s", None)  # wall clock
     return found
 
 
 def final_arrays(run_dir):
-    arrays, _ = io.load_checkpoint(io.latest_checkpoint(run_dir))
+    arrays, _ = checkpoints.load_checkpoint(checkpoints.latest_checkpoint(run_dir))
     return arrays
 
 
@@ -91,13 +94,15 @@ def test_truncation_steps_follow_the_loops_counters():
 
 
 def test_adarl_keeps_a_checkpoint_before_every_truncation(parent):
-    cuts = sorted({int(r["step"]) for r in io.read_csv(parent / "truncations.csv")})
+    cuts = sorted({int(r["step"]) for r in read_csv(parent / "truncations.csv")})
     assert cuts == sac.truncation_steps(tiny()) == [550, 650, 750]
-    kept = [p.name for p in io.checkpoint_dirs(parent, io.PRE_TRUNCATION_DIR)]
+    kept = [p.name for p in checkpoints.checkpoint_dirs(parent, PRE_TRUNCATION_DIR)]
     assert kept == [f"step_{s:012d}" for s in cuts]  # none rotated away (keep_checkpoints 1)
-    assert [p.name for p in io.checkpoint_dirs(parent)] == ["step_000000000800"]
-    arrays, meta = io.load_checkpoint(io.checkpoint_dirs(parent, io.PRE_TRUNCATION_DIR)[0])
-    assert meta["phase"] == loop.PRE_TRUNCATION and meta["step"] == 550
+    assert [p.name for p in checkpoints.checkpoint_dirs(parent)] == ["step_000000000800"]
+    arrays, meta = checkpoints.load_checkpoint(
+        checkpoints.checkpoint_dirs(parent, PRE_TRUNCATION_DIR)[0]
+    )
+    assert meta["phase"] == PRE_TRUNCATION and meta["step"] == 550
     # the update metrics since the train.csv row at 500 travel with it (one chunk of 50)
     assert arrays["pending/0/loss_q"].shape == (1, 1)
     # the state before the cut: every bottleneck still at full rank
@@ -233,11 +238,11 @@ def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkey
     def killed(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(io, "save_checkpoint", killed)
+    monkeypatch.setattr(checkpoints, "save_checkpoint", killed)
     with pytest.raises(KeyboardInterrupt):
         fork.write(planned, tmp_path / "child", "")
     monkeypatch.undo()
-    assert (tmp_path / "child" / "config.yaml").exists() and not io.checkpoint_dirs(
+    assert (tmp_path / "child" / "config.yaml").exists() and not checkpoints.checkpoint_dirs(
         tmp_path / "child"
     )
     with pytest.raises(UsageError, match="was interrupted while being made .*; fork again"):

@@ -19,11 +19,14 @@ import yaml
 
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.cli.main import main
-from adarl.train import io, rnac_learner, sac_learner
+from adarl.runs import checkpoints
+from adarl.runs.layout import LOCK_FILE
+from adarl.runs.logs import read_csv
+from adarl.train import rnac_learner, sac_learner
 
 HOLD = """
 import sys, time
-from adarl.train.io import RunLock
+from adarl.runs.lock import RunLock
 lock = RunLock(sys.argv[1])
 lock.acquire(new=False)
 print("locked", flush=True)
@@ -32,14 +35,14 @@ time.sleep(600)
 
 
 def csv_rows(run_dir: Path, name: str) -> list[dict]:
-    rows = io.read_csv(run_dir / name)
+    rows = read_csv(run_dir / name)
     for row in rows:
         row.pop("steps_per_s", None)
     return rows
 
 
 def final_arrays(run_dir: Path) -> dict:
-    return io.load_checkpoint(io.latest_checkpoint(run_dir))[0]
+    return checkpoints.load_checkpoint(checkpoints.latest_checkpoint(run_dir))[0]
 
 
 def unfinished_copy(base: Path, dest: Path, drop_last_checkpoint: bool = False) -> Path:
@@ -47,7 +50,7 @@ def unfinished_copy(base: Path, dest: Path, drop_last_checkpoint: bool = False) 
     shutil.copytree(base, dest)
     (dest / "DONE").unlink()
     if drop_last_checkpoint:
-        shutil.rmtree(io.checkpoint_dirs(dest)[-1])
+        shutil.rmtree(checkpoints.checkpoint_dirs(dest)[-1])
     return dest
 
 
@@ -67,7 +70,7 @@ def sac_run(tmp_path_factory) -> Path:
     )
     run_dir = tmp_path_factory.mktemp("sac") / "run"
     sac_learner.train(config, run_dir, progress=False)
-    assert [p.name for p in io.checkpoint_dirs(run_dir)] == [
+    assert [p.name for p in checkpoints.checkpoint_dirs(run_dir)] == [
         "step_000000000500",
         "step_000000001000",
     ]
@@ -83,7 +86,7 @@ def test_resume_of_a_run_another_process_writes_is_refused_and_writes_nothing(
     sac_run, tmp_path, capsys
 ):
     run_dir = unfinished_copy(sac_run, tmp_path / "run")
-    (run_dir / io.LOCK_FILE).touch()
+    (run_dir / LOCK_FILE).touch()
     holder = subprocess.Popen(
         [sys.executable, "-c", HOLD, str(run_dir)], stdout=subprocess.PIPE, text=True
     )
@@ -106,7 +109,7 @@ def test_a_damaged_newest_checkpoint_is_reported_and_the_older_one_resumes_exact
     sac_run, tmp_path, capsys
 ):
     run_dir = unfinished_copy(sac_run, tmp_path / "run")
-    newest = io.checkpoint_dirs(run_dir)[-1] / "arrays.npz"
+    newest = checkpoints.checkpoint_dirs(run_dir)[-1] / "arrays.npz"
     newest.write_bytes(newest.read_bytes()[:5000])  # a short file
     assert resume(run_dir) == 0
     err = capsys.readouterr().err
@@ -121,7 +124,7 @@ def test_a_damaged_newest_checkpoint_is_reported_and_the_older_one_resumes_exact
 
 def test_no_intact_checkpoint_is_exit_2(sac_run, tmp_path, capsys):
     run_dir = unfinished_copy(sac_run, tmp_path / "run")
-    for path in io.checkpoint_dirs(run_dir):
+    for path in checkpoints.checkpoint_dirs(run_dir):
         (path / "arrays.npz").write_bytes(b"garbage")
     assert resume(run_dir) == 2
     assert "no intact checkpoint" in capsys.readouterr().err.splitlines()[-1]
@@ -132,8 +135,8 @@ def test_disk_full_during_a_checkpoint_is_exit_1_and_the_run_resumes(
     sac_run, tmp_path, monkeypatch, capsys
 ):
     run_dir = unfinished_copy(sac_run, tmp_path / "run", drop_last_checkpoint=True)
-    previous = io.checkpoint_dirs(run_dir)[-1]
-    sha = io.file_sha256(previous / "arrays.npz")
+    previous = checkpoints.checkpoint_dirs(run_dir)[-1]
+    sha = checkpoints.file_sha256(previous / "arrays.npz")
     savez = np.savez
 
     def full_disk(file, *args, **kwargs):
@@ -147,8 +150,8 @@ def test_disk_full_during_a_checkpoint_is_exit_1_and_the_run_resumes(
     assert err.count("\n") == 1, err
     assert "step_000000001000" in err and "No space left on device" in err
     monkeypatch.undo()
-    assert io.checkpoint_dirs(run_dir) == [previous]
-    assert io.file_sha256(previous / "arrays.npz") == sha
+    assert checkpoints.checkpoint_dirs(run_dir) == [previous]
+    assert checkpoints.file_sha256(previous / "arrays.npz") == sha
     assert not (run_dir / "DONE").exists()
     assert resume(run_dir) == 0
     for name in ("episodes.csv", "train.csv", "eval.csv"):
@@ -188,7 +191,7 @@ def test_sac_divergence_stops_at_the_next_log_with_exit_3(tmp_path, capsys):
     assert "diverged at step 500" in err and "loss_q (seed" in err, err
     assert "step_000000000250" in err  # the last good checkpoint, named and kept
     assert not (out / "DONE").exists()
-    assert [p.name for p in io.checkpoint_dirs(out)] == ["step_000000000250"]
+    assert [p.name for p in checkpoints.checkpoint_dirs(out)] == ["step_000000000250"]
     arrays = final_arrays(out)
     assert all(np.isfinite(a).all() for a in arrays.values() if a.dtype.kind == "f")
 
@@ -210,7 +213,7 @@ def test_rnac_falls_back_to_an_older_checkpoint_and_resumes_exactly(tmp_path, ca
     base = tmp_path / "base"
     rnac_learner.train(config, base)
     run_dir = unfinished_copy(base, tmp_path / "run")
-    newest = io.checkpoint_dirs(run_dir)[-1] / "arrays.npz"
+    newest = checkpoints.checkpoint_dirs(run_dir)[-1] / "arrays.npz"
     data = bytearray(newest.read_bytes())
     data[len(data) // 2] ^= 0xFF
     newest.write_bytes(bytes(data))

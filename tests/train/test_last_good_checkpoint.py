@@ -12,7 +12,8 @@ import pytest
 
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.errors import Diverged
-from adarl.train import io, rnac_learner, sac_learner
+from adarl.runs import checkpoints
+from adarl.train import rnac_learner, sac_learner
 
 
 def poison_one(tree, value, seed_position: int = 0):
@@ -25,13 +26,13 @@ def poison_one(tree, value, seed_position: int = 0):
 
 
 def assert_all_finite(checkpoint):
-    arrays, _ = io.load_checkpoint(checkpoint)
+    arrays, _ = checkpoints.load_checkpoint(checkpoint)
     bad = [k for k, a in arrays.items() if a.dtype.kind == "f" and not np.isfinite(a).all()]
     assert not bad, f"{checkpoint.name} holds non-finite {bad[:3]}"
 
 
 def step_names(run_dir):
-    return [p.name for p in io.checkpoint_dirs(run_dir)]
+    return [p.name for p in checkpoints.checkpoint_dirs(run_dir)]
 
 
 # ----------------------------------------------------------------------------- SAC family
@@ -78,7 +79,7 @@ def test_sac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     assert "diverged at step 300" in message and f"{words} (seed 1)" in message, message
     assert "last good checkpoint step_000000000200" in message, message
     assert step_names(run_dir) == ["step_000000000100", "step_000000000200"]
-    assert_all_finite(io.checkpoint_dirs(run_dir)[-1])
+    assert_all_finite(checkpoints.checkpoint_dirs(run_dir)[-1])
     assert not (run_dir / "DONE").exists()
 
 
@@ -125,4 +126,4 @@ def test_rnac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     assert "diverged at step 768" in message and f"{words} (seed 1)" in message, message
     assert "last good checkpoint step_000000000512" in message, message
     assert step_names(run_dir) == ["step_000000000256", "step_000000000512"]
-    assert_all_finite(io.checkpoint_dirs(run_dir)[-1])
+    assert_all_finite(checkpoints.checkpoint_dirs(run_dir)[-1])

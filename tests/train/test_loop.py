@@ -9,7 +9,9 @@ import pytest
 from adarl.algos import rnac, sac
 from adarl.algos.registry import SAC_FAMILY
 from adarl.policy import to_bytes
-from adarl.train import io, loop, rnac_learner, sac_learner
+from adarl.runs import checkpoints
+from adarl.runs.logs import read_csv
+from adarl.train import loop, rnac_learner, sac_learner
 
 
 def sac_config(**overrides):
@@ -42,13 +44,13 @@ CASES = {
 def test_logs_evaluations_and_best_policies_alike_for_every_learner(name, tmp_path):
     train, config, train_steps, eval_steps = CASES[name]
     run_dir = train(config, tmp_path / "run", progress=False)
-    rows = io.read_csv(run_dir / "train.csv")
+    rows = read_csv(run_dir / "train.csv")
     assert sorted({int(r["step"]) for r in rows}) == train_steps
-    evals = io.read_csv(run_dir / "eval.csv")
+    evals = read_csv(run_dir / "eval.csv")
     assert sorted({int(r["step"]) for r in evals}) == eval_steps
     assert (run_dir / "DONE").read_text().strip() == str(config.total_steps)
 
-    last = io.latest_checkpoint(run_dir)
+    last = checkpoints.latest_checkpoint(run_dir)
     best = json.loads((last / "meta.json").read_text())["best"]
     assert best["metric"] == "mean nominal evaluation return" and "from_step" not in best
     for seed in config.seeds:

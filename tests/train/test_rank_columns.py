@@ -11,7 +11,8 @@ from collections import defaultdict
 import pytest
 
 from adarl.algos import SAC_FAMILY, sac
-from adarl.train import io, sac_learner
+from adarl.runs.logs import read_csv
+from adarl.train import sac_learner
 
 
 def smoke_config(**overrides):
@@ -65,7 +66,7 @@ def test_a_seeds_rank_changes_only_at_its_truncations(lanes, tmp_path):
     )  # fmt: skip
     run_dir = tmp_path / "run"
     sac_learner.train(config, run_dir, progress=False)
-    cuts = io.read_csv(run_dir / "truncations.csv")
+    cuts = read_csv(run_dir / "truncations.csv")
     steps = expected_truncation_steps(config)
     assert steps == [550, 650, 750, 850]
     assert sorted({int(r["step"]) for r in cuts}) == steps
@@ -77,7 +78,7 @@ def test_a_seeds_rank_changes_only_at_its_truncations(lanes, tmp_path):
         assert candidate == max(1, min(old, proposed))
         assert r["decision"] == expected_decision(old, candidate, new), r
 
-    rows = io.read_csv(run_dir / "train.csv")
+    rows = read_csv(run_dir / "train.csv")
     layers = [c.removeprefix("rank_") for c in rows[0] if c.startswith("rank_")]
     assert sorted(layers) == ["actor_1", "q1_1", "q2_1"]
     history = defaultdict(list)  # (seed, layer) -> [(step, rank)] in step order
@@ -115,11 +116,11 @@ def test_a_rule_that_proposes_no_cut_is_logged_unchanged(tmp_path):
         log_every=550, eval_every=550, checkpoint_every=550,
     )  # fmt: skip
     sac_learner.train(config, tmp_path / "run", progress=False)
-    cuts = io.read_csv(tmp_path / "run" / "truncations.csv")
+    cuts = read_csv(tmp_path / "run" / "truncations.csv")
     assert len(cuts) == 3 and {r["step"] for r in cuts} == {"550"}
     width = str(config.hidden[0])
     for r in cuts:
         assert r["old_rank"] == r["candidate_rank"] == r["new_rank"] == width, r
         assert r["decision"] == "unchanged", r
-    last = io.read_csv(tmp_path / "run" / "train.csv")[-1]
+    last = read_csv(tmp_path / "run" / "train.csv")[-1]
     assert {last["rank_actor_1"], last["rank_q1_1"], last["rank_q2_1"]} == {width}

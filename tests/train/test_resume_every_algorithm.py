@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from adarl.algos import registry
-from adarl.train import run_folder
-from adarl.train.io import read_csv
+from adarl.runs import checkpoints, folder
+from adarl.runs.layout import CHECKPOINT_DIR
+from adarl.runs.logs import read_csv
 
 # Each algorithm's `smoke` preset with the budgets of its own tests (tests/algos/test_sac_family.py,
 # tests/algos/test_rnac.py); the crash comes before the second checkpoint, with CSV rows written
@@ -58,7 +59,7 @@ def _csv(run, name):
 
 
 def _final(run):
-    return sorted((run / run_folder.CHECKPOINT_DIR).iterdir())[-1]
+    return sorted((run / CHECKPOINT_DIR).iterdir())[-1]
 
 
 @pytest.mark.parametrize("algo", registry.ALGOS)
@@ -68,26 +69,26 @@ def test_killed_and_resumed_run_equals_an_uninterrupted_one(algo, tmp_path, monk
     train(config, tmp_path / "full", progress=False)
 
     saved = []
-    original = run_folder.save_checkpoint
+    original = checkpoints.save_checkpoint
 
     def save_then_crash(*args, **kwargs):
-        if kwargs.get("folder", run_folder.CHECKPOINT_DIR) != run_folder.CHECKPOINT_DIR:
+        if kwargs.get("folder", CHECKPOINT_DIR) != CHECKPOINT_DIR:
             return original(*args, **kwargs)  # a pre-truncation checkpoint (never resumed from)
         if saved:  # the second checkpoint: die before writing it
             raise Crash
         saved.append(original(*args, **kwargs))
         return saved[-1]
 
-    monkeypatch.setattr(run_folder, "save_checkpoint", save_then_crash)
+    monkeypatch.setattr(checkpoints, "save_checkpoint", save_then_crash)
     with pytest.raises(Crash):
         train(config, tmp_path / "killed", progress=False)
-    monkeypatch.setattr(run_folder, "save_checkpoint", original)
+    monkeypatch.setattr(checkpoints, "save_checkpoint", original)
     killed = tmp_path / "killed"
     assert not (killed / "DONE").exists() and len(saved) == 1
     steps_after = [int(r["step"]) for r in read_csv(killed / "train.csv")]
     first = json.loads((saved[0] / "meta.json").read_text())["step"]
     assert max(steps_after) > first  # rows past the checkpoint, which the resume must cut
-    algo_back, config_back = run_folder.config_from_run(killed)
+    algo_back, config_back = folder.config_from_run(killed)
     assert (algo_back, config_back) == (algo, config)
     train(config_back, killed, resume=True, progress=False)
 

@@ -12,8 +12,8 @@ import pytest
 
 from adarl.algos import rnac
 from adarl.errors import UsageError
+from adarl.runs.logs import read_csv
 from adarl.train import rnac_learner
-from adarl.train.io import read_csv
 
 
 # ----------------------------------------------------------------------------- double sampling
@@ -76,7 +76,8 @@ def test_run_checkpoint_and_exact_resume(tmp_path):
 
     # the policy file is the trained deterministic policy: normalise, tanh MLP, c + h·tanh(mean)
     from adarl.policy import load
-    from adarl.train.io import load_checkpoint, unflatten_tree
+    from adarl.runs.checkpoints import load_checkpoint
+    from adarl.runs.codec import unflatten_tree
 
     arrays, _ = load_checkpoint(full / "checkpoints/step_000000001024")
     state = unflatten_tree(rnac.init_states([0, 1], config, 11, 3)[0], arrays, "state")

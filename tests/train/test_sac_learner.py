@@ -14,7 +14,9 @@ import pytest
 
 from adarl.algos import SAC_FAMILY, sac
 from adarl.errors import UsageError
-from adarl.train import io, sac_learner
+from adarl.runs import checkpoints
+from adarl.runs.logs import read_csv
+from adarl.train import sac_learner
 
 
 def smoke_config(algo="adarl", **overrides):
@@ -25,12 +27,12 @@ def smoke_config(algo="adarl", **overrides):
 
 def csv_rows(run_dir, name, drop=("steps_per_s",)):
     return [
-        {k: v for k, v in row.items() if k not in drop} for row in io.read_csv(Path(run_dir) / name)
+        {k: v for k, v in row.items() if k not in drop} for row in read_csv(Path(run_dir) / name)
     ]
 
 
 def final_arrays(run_dir):
-    arrays, _ = io.load_checkpoint(io.latest_checkpoint(run_dir))
+    arrays, _ = checkpoints.load_checkpoint(checkpoints.latest_checkpoint(run_dir))
     return arrays
 
 
@@ -52,7 +54,7 @@ def test_pendulum_learns_for_every_seed(tmp_path):
         checkpoint_every=10_000,
     )
     sac_learner.train(config, tmp_path / "run", progress=False)
-    rows = io.read_csv(tmp_path / "run" / "eval.csv")
+    rows = read_csv(tmp_path / "run" / "eval.csv")
     for seed in (0, 1):
         returns = [float(r["return"]) for r in rows if int(r["seed"]) == seed]
         assert len(returns) == 5
@@ -77,7 +79,7 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
         seeds=(0, 1, 2), total_steps=2_000, checkpoint_every=1_000, **rank_settings
     )
     sac_learner.train(config, tmp_path / "full", progress=False)
-    cuts = io.read_csv(tmp_path / "full" / "truncations.csv")
+    cuts = read_csv(tmp_path / "full" / "truncations.csv")
     assert len(cuts) == sac.n_truncations(config) * 3 * 3  # truncations × layers × seeds
     decisions = {row["decision"] for row in cuts}
     assert decisions <= {"accepted", "retained", "unchanged"}
@@ -149,7 +151,7 @@ def test_a_seed_gives_the_same_bits_alone_and_among_other_seeds(tmp_path):
     together, alone = tmp_path / "all", tmp_path / "alone"
     for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv"):
         assert seed_rows(together, name, 3) == seed_rows(alone, name, 3), name
-    cuts = io.read_csv(together / "truncations.csv")
+    cuts = read_csv(together / "truncations.csv")
     assert len({(r["layer"], r["new_rank"]) for r in cuts if r["step"] == cuts[-1]["step"]}) > 3
     for name in sorted(p.name for p in (alone / "spectra").iterdir()):
         with np.load(together / "spectra" / name) as a, np.load(alone / "spectra" / name) as b:
@@ -212,7 +214,7 @@ def test_sigkill_then_resume_completes_without_duplicates(tmp_path):
     ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 240
-    while time.time() < deadline and len(io.checkpoint_dirs(run_dir)) < 2:
+    while time.time() < deadline and len(checkpoints.checkpoint_dirs(run_dir)) < 2:
         time.sleep(0.2)
         assert proc.poll() is None, "training ended before it could be killed"
     os.kill(proc.pid, signal.SIGKILL)
@@ -233,10 +235,10 @@ def test_sigkill_then_resume_completes_without_duplicates(tmp_path):
     )
     assert resume.returncode == 0, resume.stderr
     assert (run_dir / "DONE").read_text().strip() == "3000"
-    episodes = io.read_csv(run_dir / "episodes.csv")
+    episodes = read_csv(run_dir / "episodes.csv")
     keys = [(r["seed"], r["episode"]) for r in episodes]
     assert len(keys) == len(set(keys))
-    steps = [int(r["step"]) for r in io.read_csv(run_dir / "train.csv")]
+    steps = [int(r["step"]) for r in read_csv(run_dir / "train.csv")]
     assert steps == sorted(set(steps))
 
 

@@ -3,7 +3,7 @@ rl-zoo3 use) mirrors every TensorBoard scalar of the run, under the same tag, to
 config is the run's config. Needs the `track` extra (`pip install 'adarl[track]'`).
 
 The run folder stays the record: W&B is a mirror, written as the TensorBoard events are
-(`adarl.train.io.Scalars` calls `log`), and never read back. Each scalar is logged with its
+(`adarl.runs.logs.Scalars` calls `log`), and never read back. Each scalar is logged with its
 environment step as `global_step`, the x-axis of every chart, so that W&B's own step counter never
 has to follow the run's steps (a resumed run logs the stretch since its checkpoint again, with the
 same values). A resumed run continues the same W&B run: its id is derived from the run folder's

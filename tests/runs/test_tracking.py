@@ -14,8 +14,8 @@ import pytest
 
 from adarl.cli.main import main
 from adarl.cli.train import add_arguments, build_config
+from adarl.runs import tracking
 from adarl.sweeps import spec, worker
-from adarl.train import tracking
 
 TINY = ["--algo", "adarl", "--preset", "smoke", "--seeds", "0", "--total-steps", "1000"]
 

@@ -16,8 +16,9 @@ from importlib import metadata
 from pathlib import Path
 
 from adarl import __version__
+from adarl.files import atomic_write_json
+from adarl.runs.layout import ENVIRONMENT_FILE
 
-FILE = "environment.json"
 FORMAT_VERSION = 1
 #: Distributions whose versions are recorded (by their installed metadata: nothing is imported).
 PACKAGES = ("jax", "jaxlib", "mujoco", "gymnasium", "numpy", "optax")
@@ -49,16 +50,14 @@ def environment_record() -> dict:
 def write_environment(run_dir: str | os.PathLike, extra: dict | None = None) -> None:
     """Write `environment_record()` (plus `extra`, e.g. a fork's record) to
     RUN_DIR/environment.json (atomically)."""
-    from adarl.train.io import atomic_write_json
-
-    atomic_write_json(Path(run_dir) / FILE, {**environment_record(), **(extra or {})})
+    atomic_write_json(Path(run_dir) / ENVIRONMENT_FILE, {**environment_record(), **(extra or {})})
 
 
 def read_environment(run_dir: str | os.PathLike) -> dict | None:
     """A run's record, or None if it has none (runs made before it was written) or it is
     unreadable."""
     try:
-        record = json.loads((Path(run_dir) / FILE).read_text(encoding="utf-8"))
+        record = json.loads((Path(run_dir) / ENVIRONMENT_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) else None

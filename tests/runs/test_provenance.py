@@ -11,7 +11,8 @@ import pytest
 from adarl import __version__
 from adarl.algos import SAC_FAMILY, rnac, sac
 from adarl.evaluation import report
-from adarl.train import provenance, rnac_learner, sac_learner
+from adarl.runs import provenance
+from adarl.train import rnac_learner, sac_learner
 
 ROOT = Path(provenance.__file__).resolve().parents[2]
 

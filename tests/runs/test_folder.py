@@ -1,5 +1,5 @@
-"""The run-folder module: runs written by earlier versions load, resume and evaluate; the
-environment-state codec round-trips; config.yaml is written and read back through the registry.
+"""The run folder: runs written by earlier versions load, resume and evaluate; config.yaml is
+written and read back through the registry.
 
 tests/data/run-format-1 holds two tiny runs written by adarl at commit 96c9f8c (run format 1,
 before the run-folder module): `sac-family` (adarl, 2 seeds, 200 steps, 4 truncations) and
@@ -14,8 +14,8 @@ import pytest
 
 from adarl.algos import registry
 from adarl.cli.main import main
-from adarl.train import run_folder
-from adarl.train.io import read_csv
+from adarl.runs import folder
+from adarl.runs.logs import read_csv
 
 OLD = Path(__file__).parent.parent / "data" / "run-format-1"
 
@@ -48,7 +48,7 @@ def _same_rows(a: list[dict], b: list[dict]) -> bool:
 
 @pytest.mark.parametrize(("name", "algo"), [("sac-family", "adarl"), ("rnac", "rnac")])
 def test_old_run_config_loads(name, algo):
-    got_algo, config = run_folder.config_from_run(OLD / name)
+    got_algo, config = folder.config_from_run(OLD / name)
     assert got_algo == algo
     assert config.seeds == (0, 1) and config.hidden == (16, 16)
     assert isinstance(config, registry.get(algo).config_class)
@@ -61,8 +61,8 @@ def test_old_run_resumes_to_its_own_results(name, tmp_path):
     offset names) and writes the rows it wrote the first time."""
     run = tmp_path / name
     shutil.copytree(OLD / name, run)
-    checkpoints = sorted((run / "checkpoints").iterdir())
-    shutil.rmtree(checkpoints[-1])
+    saved = sorted((run / "checkpoints").iterdir())
+    shutil.rmtree(saved[-1])
     (run / "DONE").unlink()
     with open(run / "episodes.csv", "a") as f:
         f.write("99,0,99,12.")
@@ -96,38 +96,12 @@ def test_old_runs_evaluate_rank_and_export(tmp_path, capsys):
     assert (tmp_path / "p.npz").exists()
 
 
-def test_env_state_codec_round_trip():
-    state = {
-        "a": np.arange(3.0),
-        "t": (1, np.int64(2), [np.zeros((2, 2), np.float32)]),
-        "d": {"x": None, "y": "text", "z": np.float64(0.5)},
-    }
-    arrays: dict = {}
-    encoded = run_folder.encode_env_state(state, arrays, "env/0")
-    json.dumps(encoded)  # meta.json-able
-    back = run_folder.decode_env_state(json.loads(json.dumps(encoded)), arrays)
-    assert isinstance(back["t"], tuple) and back["t"][1] == 2 and back["d"] == state["d"]
-    np.testing.assert_array_equal(back["a"], state["a"])
-    assert back["t"][2][0].dtype == np.float32 and sorted(arrays) == ["env/0/a", "env/0/t/2/0"]
-    # the SAC loop's encoding of run format 1: arrays inline in meta.json
-    old = {"a": {"__ndarray__": [1.0, 2.0], "dtype": "float32"}, "b": [1, 2]}
-    legacy = run_folder.decode_env_state(old, {})
-    assert legacy["a"].dtype == np.float32 and legacy["b"] == [1, 2]
-
-
-def test_legacy_meta_keys():
-    assert run_folder.rng_states({"np_rngs": [1]}) == [1]
-    assert run_folder.rng_states({"rng_states": [2], "np_rngs": [1]}) == [2]
-    offsets = run_folder.csv_offsets({"csv_offsets": {"episodes": 3, "train.csv": 4}})
-    assert offsets == {"episodes.csv": 3, "train.csv": 4}
-
-
 @pytest.mark.parametrize("algo", registry.ALGOS)
 def test_config_yaml_round_trips_through_the_registry(algo, tmp_path):
     flags = {"seeds": "0-2", **({"rank": "7"} if "rank" in registry.field_names(algo) else {})}
     config = registry.resolve_config(algo, "smoke", flags)
     tmp_path.joinpath("run").mkdir()
-    run_folder.write_config(tmp_path / "run", config, algo, "adarl train …")
-    record = run_folder.load_config(tmp_path / "run")
+    folder.write_config(tmp_path / "run", config, algo, "adarl train …")
+    record = folder.load_config(tmp_path / "run")
     assert record["algo"] == algo and record["command"] == "adarl train …"
-    assert run_folder.config_from_run(tmp_path / "run") == (algo, config)
+    assert folder.config_from_run(tmp_path / "run") == (algo, config)

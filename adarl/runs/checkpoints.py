@@ -1,0 +1,258 @@
+"""Checkpoints that survive SIGKILL: `checkpoints/step_<n>/` written atomically with a checksum,
+read back with the fallback to an older intact one, the keys both loops write to meta.json, and
+choosing a checkpoint and its policy files for evaluation (docs/run-format.md,
+docs/reliability.md).
+
+Runs written before the loops shared this module (run format 1 as the SAC and RNAC loops wrote
+it separately) still load: `rng_states` and `csv_offsets` read the old keys.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from adarl import __version__
+from adarl.errors import UsageError
+from adarl.files import fs_errors, fsync_dir, json_default
+from adarl.runs.layout import (
+    ARRAYS_FILE,
+    CHECKPOINT_DIR,
+    DAMAGED_PREFIX,
+    META_FILE,
+    POLICY_PATTERN,
+    RUN_FORMAT_VERSION,
+    STEP_PREFIX,
+    checkpoint_step,
+    step_name,
+)
+
+
+class CheckpointDamaged(UsageError):
+    """A checkpoint that cannot be read back (bad zip, short file, wrong checksum)."""
+
+
+def checkpoint_dirs(run_dir: str | os.PathLike, folder: str = CHECKPOINT_DIR) -> list[Path]:
+    """Complete checkpoints of a run, oldest first (a complete one has meta.json); `folder`
+    PRE_TRUNCATION_DIR: the pre-truncation ones."""
+    root = Path(run_dir) / folder
+    if not root.is_dir():
+        return []
+    found = [p for p in root.iterdir() if p.is_dir() and p.name.startswith(STEP_PREFIX)]
+    found = [p for p in found if (p / META_FILE).exists() and (p / ARRAYS_FILE).exists()]
+    return sorted(found, key=checkpoint_step)
+
+
+def save_checkpoint(
+    run_dir: str | os.PathLike,
+    step: int,
+    arrays: dict[str, np.ndarray],
+    meta: dict,
+    keep: int = 2,
+    files: dict[str, bytes] | None = None,
+    folder: str = CHECKPOINT_DIR,
+) -> Path:
+    """Write `<folder>/step_<step>/` (default `checkpoints/`) atomically: a temp folder holding
+    arrays.npz, the extra `files` (name -> bytes, e.g. policy files) and meta.json (written last,
+    with the sha256 of arrays.npz) is renamed into place, then older checkpoints of that folder
+    beyond `keep` go (0: none). An OSError becomes a one-line `RunFailed`; the checkpoints
+    already there are left as they were."""
+    root = Path(run_dir) / folder
+    final = root / step_name(step)
+    with fs_errors(final):
+        root.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".tmp_{STEP_PREFIX}"))
+        try:
+            os.chmod(tmp, 0o755)  # mkdtemp makes 0700; a run folder is readable like its files
+            with open(tmp / ARRAYS_FILE, "wb") as f:
+                np.savez(f, **arrays)
+                f.flush()
+                os.fsync(f.fileno())
+            for name, data in (files or {}).items():
+                with open(tmp / name, "wb") as f:
+                    f.write(data)
+                    f.flush()
+                    os.fsync(f.fileno())
+            meta = dict(
+                meta,
+                step=int(step),
+                format_version=RUN_FORMAT_VERSION,
+                adarl_version=__version__,
+                arrays_sha256=file_sha256(tmp / ARRAYS_FILE),
+            )
+            with open(tmp / META_FILE, "w", encoding="utf-8") as f:
+                json.dump(meta, f, indent=1, sort_keys=True, default=json_default)
+                f.flush()
+                os.fsync(f.fileno())
+            if final.exists():
+                shutil.rmtree(final)
+            os.replace(tmp, final)
+            fsync_dir(root)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+    for old in checkpoint_dirs(run_dir, folder)[:-keep] if keep > 0 else []:
+        shutil.rmtree(old, ignore_errors=True)
+    for stale in root.glob(f".tmp_{STEP_PREFIX}*"):  # left by a killed writer
+        shutil.rmtree(stale, ignore_errors=True)
+    return final
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex sha256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def load_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
+    """Read one checkpoint folder. A damaged one (unreadable meta.json or arrays.npz, or
+    arrays.npz not matching its checksum) raises `CheckpointDamaged`, another format version a
+    UsageError; both one line. Checkpoints written before checksums load without the check."""
+    path = Path(path)
+    try:
+        meta = json.loads((path / META_FILE).read_text(encoding="utf-8"))
+        expected = meta.get("arrays_sha256")
+        if expected is not None and file_sha256(path / ARRAYS_FILE) != expected:
+            raise CheckpointDamaged(
+                f"checkpoint {path} is damaged (arrays.npz does not match its sha256 in meta.json)"
+            )
+        with np.load(path / ARRAYS_FILE, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except CheckpointDamaged:
+        raise
+    except Exception as exc:  # BadZipFile, EOFError, OSError, ValueError, …: all mean damaged
+        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({reason})") from exc
+    if meta.get("format_version") != RUN_FORMAT_VERSION:
+        raise UsageError(
+            f"checkpoint {path} has format version {meta.get('format_version')!r}; "
+            f"this adarl ({__version__}) reads version {RUN_FORMAT_VERSION}"
+        )
+    return arrays, meta
+
+
+def latest_checkpoint(run_dir: str | os.PathLike) -> Path:
+    found = checkpoint_dirs(run_dir)
+    if not found:
+        raise UsageError(f"run folder {run_dir} has no complete checkpoint")
+    return found[-1]
+
+
+def load_latest_intact(run_dir: str | os.PathLike, warn=None):
+    """The newest checkpoint that loads: `(path, arrays, meta)`, or None if the run has none.
+
+    Each damaged checkpoint is reported in one line (`warn`, default: stderr) and the next older
+    one is tried; the damaged ones newer than the one used are renamed `damaged_step_<n>` (kept
+    for inspection, never loaded again). With none intact, a one-line UsageError and nothing
+    renamed. Call it only while holding the run's lock.
+    """
+    warn = warn or (lambda line: print(line, file=sys.stderr, flush=True))
+    found = checkpoint_dirs(run_dir)
+    damaged = []
+    for path in reversed(found):
+        try:
+            arrays, meta = load_checkpoint(path)
+        except CheckpointDamaged as exc:
+            warn(f"adarl: warning: {exc}; trying the next older checkpoint")
+            damaged.append(path)
+            continue
+        for bad in damaged:
+            aside = bad.with_name(DAMAGED_PREFIX + bad.name)
+            with fs_errors(aside):
+                if aside.exists():
+                    shutil.rmtree(aside)
+                os.replace(bad, aside)
+        return path, arrays, meta
+    if found:
+        raise UsageError(
+            f"run folder {run_dir} has no intact checkpoint (all {len(found)} are damaged); "
+            "start a new run"
+        )
+    return None
+
+
+# ----------------------------------------------------------------------------- meta.json
+def config_record(config) -> dict:
+    """A config as checkpoints store it (`meta["config"]`): plain JSON values."""
+    return json.loads(json.dumps(dataclasses.asdict(config), default=json_default))
+
+
+def checkpoint_meta(algo: str, config, seeds, rngs, env_states: list, csv_offsets: dict) -> dict:
+    """The keys both loops write to meta.json (the loop adds its own, e.g. `best`)."""
+    return {
+        "algo": algo,
+        "seeds": [int(s) for s in seeds],
+        "rng_states": [rng.bit_generator.state for rng in rngs],
+        "env_states": env_states,
+        "csv_offsets": csv_offsets,
+        "config": config_record(config),
+    }
+
+
+def rng_states(meta: dict) -> list[dict]:
+    """Each seed's NumPy generator state (`np_rngs` in SAC checkpoints of run format 1)."""
+    return meta["rng_states"] if "rng_states" in meta else meta["np_rngs"]
+
+
+def restore_rngs(meta: dict, seeds) -> list[np.random.Generator]:
+    rngs = []
+    for s, state in zip(seeds, rng_states(meta)):
+        rng = np.random.default_rng(s)
+        rng.bit_generator.state = state
+        rngs.append(rng)
+    return rngs
+
+
+def csv_offsets(meta: dict) -> dict[str, int]:
+    """Byte offsets of the CSV logs by file name (RNAC checkpoints of run format 1 wrote them
+    without `.csv`)."""
+    return {(k if k.endswith(".csv") else f"{k}.csv"): v for k, v in meta["csv_offsets"].items()}
+
+
+# ----------------------------------------------------------------------------- for evaluation
+def select_checkpoint(run_dir: str | os.PathLike, step: int | None = None) -> Path:
+    """The final complete checkpoint of a run, or the one at `step`; `UsageError` otherwise."""
+    found = checkpoint_dirs(run_dir)
+    if not found:
+        raise UsageError(
+            f"run folder {run_dir} has no complete checkpoint (checkpoints/step_*/meta.json)"
+        )
+    if step is None:
+        return found[-1]
+    for checkpoint in found:
+        if checkpoint_step(checkpoint) == step:
+            return checkpoint
+    steps = ", ".join(str(checkpoint_step(c)) for c in found)
+    raise UsageError(f"run folder {run_dir} has no checkpoint at step {step}; it has: {steps}")
+
+
+def policy_files(checkpoint: Path) -> dict[int, Path]:
+    """`{seed: policy file}` of a checkpoint folder (`policy_seed_<s>.npz`), sorted by seed."""
+    found = {}
+    for p in checkpoint.iterdir():
+        m = POLICY_PATTERN.match(p.name)
+        if m:
+            found[int(m.group(1))] = p
+    if not found:
+        raise UsageError(f"checkpoint {checkpoint} holds no policy_seed_<s>.npz file")
+    return dict(sorted(found.items()))
+
+
+def policy_file(run_dir: str | os.PathLike, seed: int, step: int | None = None) -> Path:
+    """The policy file of one seed at the final (or chosen) checkpoint."""
+    files = policy_files(select_checkpoint(run_dir, step))
+    if seed not in files:
+        allowed = ", ".join(map(str, files))
+        raise UsageError(f"run folder {run_dir} has no seed {seed}; it has seeds: {allowed}")
+    return files[seed]

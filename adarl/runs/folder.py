@@ -1,0 +1,189 @@
+"""The run folder as a whole (docs/run-format.md): its config.yaml, written once and read back
+with the format-version check, starting a new run (refusing a non-empty folder), opening one to
+resume (newest intact checkpoint, checked against the config) and finishing it (DONE).
+
+Every command that reads runs (`train --resume`, `ranks`, `evaluate`, `report`, `play`,
+`export`, the sweeps) reads config.yaml through `load_config`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+from pathlib import Path
+
+import yaml
+
+from adarl import __version__
+from adarl.errors import UsageError
+from adarl.files import atomic_write_text, check_writable_dir
+from adarl.runs.checkpoints import config_record, load_latest_intact
+from adarl.runs.layout import CONFIG_FILE, DONE_FILE, RUN_FORMAT_VERSION
+from adarl.runs.lock import RunLock, lock_holder, refuse_non_empty
+from adarl.runs.provenance import write_environment
+
+#: config fields a run may change between its checkpoint and a resume (the others are the run)
+RESUMABLE_EDITS = (
+    "checkpoint_before_truncation",
+    "total_steps",
+    "on_divergence",
+    "keep_checkpoints",
+    "checkpoint_every",
+    "log_every",
+    "eval_every",
+    "eval_episodes",
+    "eval_dynamics",
+    "eager_candidates",  # RNAC: the same transitions, computed another way
+)
+
+
+# ---------------------------------------------------------------------------- config.yaml
+def config_values(config) -> dict:
+    """`config`'s fields as config.yaml holds them (tuples as lists)."""
+    return {
+        k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()
+    }
+
+
+def config_yaml(config, extra: dict | None = None) -> str:
+    """`config`'s fields then `extra`, as YAML."""
+    return yaml.safe_dump({**config_values(config), **(extra or {})}, sort_keys=False)
+
+
+def write_config(run_dir: Path, config, algo: str, command: str, fork: dict | None = None) -> None:
+    """config.yaml of a new run: `algo`, every config field, the format and adarl versions, the
+    command that started it and, for a fork, where it came from (`fork`, docs/run-format.md)."""
+    values = {} if hasattr(config, "algo") else {"algo": algo}
+    values.update(config_values(config))
+    values.update(format_version=RUN_FORMAT_VERSION, adarl_version=__version__)
+    values["command"] = command or " ".join(sys.argv)
+    if fork is not None:
+        values["fork"] = fork
+    write_config_values(run_dir, values)
+
+
+def write_config_values(run_dir: str | os.PathLike, values: dict) -> None:
+    """config.yaml holding `values` in their order (`write_config` builds them for a trainer's
+    config; the synthetic runs of adarl.evaluation.synthetic give their own)."""
+    atomic_write_text(Path(run_dir) / CONFIG_FILE, yaml.safe_dump(values, sort_keys=False))
+
+
+def load_config(run_dir: str | os.PathLike) -> dict:
+    """Read and check a run folder's config.yaml (one-line errors for anything wrong)."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise UsageError(f"run folder {run_dir} does not exist")
+    path = run_dir / CONFIG_FILE
+    if not path.exists():
+        raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
+    try:
+        values = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        raise UsageError(f"{path} is not valid YAML ({exc.__class__.__name__})") from exc
+    except OSError as exc:
+        raise UsageError(f"{path} is unreadable ({exc.strerror or exc})") from exc
+    if not isinstance(values, dict):
+        raise UsageError(f"{path} is not a run config")
+    version = values.get("format_version")
+    if isinstance(version, int) and version > RUN_FORMAT_VERSION:
+        raise UsageError(
+            f"run folder {run_dir} was written in run format {version} by a newer adarl; this "
+            f"adarl ({__version__}) reads format {RUN_FORMAT_VERSION}: upgrade adarl to read it"
+        )
+    if version != RUN_FORMAT_VERSION:
+        raise UsageError(
+            f"{run_dir} was written with run format {version!r}; this adarl "
+            f"({__version__}) reads format {RUN_FORMAT_VERSION}"
+        )
+    return values
+
+
+def config_from_run(run_dir: str | os.PathLike):
+    """(algo, config) a run folder was started with, checked against the algorithm registry."""
+    from adarl.algos import registry
+
+    values = load_config(run_dir)
+    return registry.config_from_record(values, str(Path(run_dir) / CONFIG_FILE))
+
+
+def check_resume_config(run_dir: str | os.PathLike, meta: dict, config) -> None:
+    """A one-line UsageError naming the first field of config.yaml that differs from the config
+    the checkpoint was written with (fields in `RESUMABLE_EDITS` may differ). Checkpoints
+    written before the config was recorded are checked on their seeds only."""
+    now = config_record(config)
+    then = meta.get("config")
+    if then is None:
+        then = {"seeds": meta["seeds"]} if "seeds" in meta else {}
+    for name, value in then.items():
+        if name in RESUMABLE_EDITS or name not in now or now[name] == value:
+            continue
+        raise UsageError(
+            f"{Path(run_dir) / CONFIG_FILE} field {name!r} is {now[name]!r} but the run's "
+            f"checkpoint was written with {value!r}; put it back to resume, or start a new run"
+        )
+
+
+# ---------------------------------------------------------------------------- starting a run
+def check_new_run_dir(run_dir: str | os.PathLike) -> None:
+    """A new run's folder: writable and absent or empty (a lock file aside: a run killed before
+    writing anything leaves one), else a one-line UsageError."""
+    run_dir = Path(run_dir)
+    check_writable_dir(run_dir)
+    holder = lock_holder(run_dir)
+    if holder:
+        raise UsageError(
+            f"run folder {run_dir} is being written by another adarl process (pid {holder}); "
+            "choose another --out"
+        )
+    refuse_non_empty(run_dir)
+
+
+def check_resume_dir(run_dir: str | os.PathLike) -> None:
+    """A run folder to resume: it exists, holds config.yaml and can be written."""
+    run_dir = Path(run_dir)
+    if not (run_dir / CONFIG_FILE).exists():
+        raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
+    if not os.access(run_dir, os.W_OK | os.X_OK):
+        raise UsageError(f"run folder {run_dir} is not writable")
+
+
+def start_new(run_dir: Path, lock: RunLock, config, algo: str, command: str) -> None:
+    """Create a new run: refuse a non-empty folder (one-line UsageError, nothing written), take
+    the lock, write config.yaml and environment.json."""
+    check_new_run_dir(run_dir)
+    lock.acquire(new=True)
+    write_config(run_dir, config, algo, command)
+    write_environment(run_dir)
+
+
+def open_to_resume(run_dir: Path, lock: RunLock, config):
+    """Take the lock of a run to resume. Returns None if the run is complete (DONE; a line on
+    stderr), else its newest intact checkpoint `(path, arrays, meta)` checked against `config`,
+    or `(None, None, None)` if it was killed before its first one (start again)."""
+    check_resume_dir(run_dir)
+    lock.acquire(new=False)
+    if (run_dir / DONE_FILE).exists():
+        print(f"run {run_dir} is already complete", file=sys.stderr)
+        return None
+    loaded = load_latest_intact(run_dir)
+    if loaded is None:
+        return None, None, None
+    check_resume_config(run_dir, loaded[2], config)
+    return loaded
+
+
+def finish(run_dir: Path, step: int) -> None:
+    atomic_write_text(Path(run_dir) / DONE_FILE, f"{step}\n")
+
+
+def done_step(run_dir: str | os.PathLike) -> int | None:
+    """The final step recorded in DONE (-1 if unreadable), or None while the run is unfinished."""
+    done = Path(run_dir) / DONE_FILE
+    if not done.is_file():
+        return None
+    text = done.read_text(encoding="utf-8").strip()
+    try:
+        return int(float(text.split()[0])) if text else -1
+    except ValueError:
+        return -1

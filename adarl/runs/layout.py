@@ -1,0 +1,66 @@
+"""Every file and folder name of a run folder (docs/run-format.md), and the small helpers that
+build or parse them. Nothing else in adarl spells these names."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+#: The run format this adarl writes and reads (config.yaml and every checkpoint's meta.json).
+RUN_FORMAT_VERSION = 1
+
+# ---------------------------------------------------------------------------- the run folder
+CONFIG_FILE = "config.yaml"  # the resolved config, `algo`, versions, `command`
+ENVIRONMENT_FILE = "environment.json"  # what produced the run (adarl.runs.provenance)
+DONE_FILE = "DONE"  # written last, holds the final step
+LOCK_FILE = ".lock"  # holds the PID of the process writing the run (flock, adarl.runs.lock)
+EPISODES_CSV = "episodes.csv"
+TRAIN_CSV = "train.csv"
+EVAL_CSV = "eval.csv"
+TRUNCATIONS_CSV = "truncations.csv"  # algorithms that truncate ranks
+TB_DIR = "tb"  # TensorBoard events
+SPECTRA_DIR = "spectra"  # singular values at each truncation, step_<n>.npz
+EVALUATIONS_DIR = "evaluations"  # `adarl evaluate` results
+SUITES_DIR = "suites"  # `adarl evaluate --suite` summaries
+REPORT_DIR = "report"  # the report `adarl train` writes at the end
+
+# ---------------------------------------------------------------------------- checkpoints
+CHECKPOINT_DIR = "checkpoints"  # checkpoints/step_<n>/
+PRE_TRUNCATION = "pre_truncation"
+# checkpoints taken just before a truncation (fork points): kept, never rotated or resumed from
+PRE_TRUNCATION_DIR = f"{CHECKPOINT_DIR}/{PRE_TRUNCATION}"
+ARRAYS_FILE = "arrays.npz"
+META_FILE = "meta.json"  # written last: a checkpoint folder without it is incomplete
+STEP_PREFIX = "step_"
+DAMAGED_PREFIX = "damaged_"  # a checkpoint that failed to load is renamed damaged_step_<n>
+POLICY_PATTERN = re.compile(r"^policy_seed_(\d+)\.npz$")
+
+
+def step_name(step: int) -> str:
+    """`step_<step, 12 digits>`: a checkpoint folder's name and a spectra file's stem."""
+    return f"{STEP_PREFIX}{step:012d}"
+
+
+def checkpoint_step(checkpoint: Path) -> int:
+    """The step of a checkpoint folder `step_<n>`."""
+    return int(checkpoint.name.split("_")[1])
+
+
+def spectrum_file(step: int) -> str:
+    return f"{step_name(step)}.npz"
+
+
+def policy_file_name(seed: int) -> str:
+    """A seed's policy file in a checkpoint (adarl.policy format)."""
+    return f"policy_seed_{seed}.npz"
+
+
+def best_policy_file_name(seed: int) -> str:
+    """A seed's best policy so far, kept in each checkpoint by algorithms that keep one."""
+    return f"best_policy_seed_{seed}.npz"
+
+
+def is_run(path: str | os.PathLike) -> bool:
+    """Whether `path` is a run folder (holds config.yaml)."""
+    return (Path(path) / CONFIG_FILE).is_file()

@@ -1,0 +1,158 @@
+"""A run's logs: append-only CSVs that a resumed run truncates back to its last checkpoint, their
+columns, and TensorBoard scalars (mirrored to W&B with `--track`, adarl.runs.tracking)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from adarl.errors import UsageError
+from adarl.files import fs_errors
+from adarl.runs import tracking
+
+# episodes.csv: then one column p_<name> per physical parameter of the task
+EPISODE_COLUMNS = ["step", "seed", "episode", "return", "length"]
+EVAL_COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length"]
+
+
+def episode_columns(param_names) -> list[str]:
+    return [*EPISODE_COLUMNS, *(f"p_{p}" for p in param_names)]
+
+
+def eval_rows(step: int, seed: int, dynamics: str, episodes: list[dict]) -> list[dict]:
+    """eval.csv rows (`EVAL_COLUMNS`) of one seed's evaluation episodes (`run_episodes` output)."""
+    return [
+        {
+            "step": step,
+            "seed": seed,
+            "dynamics": dynamics,
+            "episode": r["episode"],
+            "return": r["return"],
+            "length": r["length"],
+        }
+        for r in episodes
+    ]
+
+
+# ----------------------------------------------------------------------------- CSV logs
+class CsvLog:
+    """Append-only CSV with a fixed header.
+
+    Rows are flushed after each `write`; `offset()` is the file size, which a checkpoint records
+    so that a resumed run can `truncate` away rows written after that checkpoint (and any half
+    line a kill left behind).
+    """
+
+    def __init__(self, path: str | os.PathLike, columns: list[str]):
+        self.path = Path(path)
+        self.columns = list(columns)
+        new = not self.path.exists() or self.path.stat().st_size == 0
+        if not new:  # appending (a resumed run): keep the file's own column order
+            with open(self.path, encoding="utf-8", newline="") as f:
+                existing = next(csv.reader(f), [])
+            if sorted(existing) != sorted(self.columns):
+                raise UsageError(f"{self.path} has columns {existing}, expected {self.columns}")
+            self.columns = existing
+        with fs_errors(self.path):
+            self._file = open(self.path, "a", newline="", encoding="utf-8")
+            self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="raise")
+            if new:
+                self._writer.writeheader()
+                self._file.flush()
+
+    def write(self, rows: dict | list[dict]) -> None:
+        if isinstance(rows, dict):
+            rows = [rows]
+        with fs_errors(self.path):
+            for row in rows:
+                self._writer.writerow({k: _fmt(v) for k, v in row.items()})
+            self._file.flush()
+
+    def offset(self) -> int:
+        with fs_errors(self.path):
+            self._file.flush()
+            return self._file.tell()
+
+    def close(self) -> None:
+        try:
+            self._file.close()
+        except OSError:  # a failed write already raised; rows not flushed then are lost anyway
+            pass
+
+    @staticmethod
+    def truncate(path: str | os.PathLike, offset: int) -> None:
+        """Cut `path` back to `offset` bytes (the size recorded in a checkpoint)."""
+        path = Path(path)
+        if path.exists() and path.stat().st_size > offset:
+            with fs_errors(path), open(path, "r+b") as f:
+                f.truncate(offset)
+
+
+def _fmt(v):
+    if isinstance(v, float | np.floating):
+        return f"{float(v):.6g}"
+    if isinstance(v, np.integer):
+        return int(v)
+    return v
+
+
+def read_csv(path: str | os.PathLike) -> list[dict]:
+    """Read a run CSV, ignoring a trailing half-written line."""
+    text = Path(path).read_text(encoding="utf-8")
+    if text and not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+# ----------------------------------------------------------------------------- TensorBoard
+def tb_episode_return(seed: int) -> str:
+    return f"episode/return/seed{seed}"
+
+
+def tb_train(name: str, seed: int) -> str:
+    """A training metric (a train.csv column)."""
+    return f"train/{name}/seed{seed}"
+
+
+def tb_eval_return(dynamics: str, seed: int) -> str:
+    """The mean evaluation return under `dynamics`."""
+    return f"eval/{dynamics}/return/seed{seed}"
+
+
+def _summary_writer():
+    """tensorboardX's SummaryWriter, imported without torch. tensorboardX imports torch when it
+    is installed (the `bench` extra), only to accept torch tensors, which costs 1.5–2 s per
+    process; torch is hidden during that import and importable again afterwards."""
+    hide = "torch" not in sys.modules
+    if hide:
+        sys.modules["torch"] = None  # makes `import torch` raise ImportError
+    try:
+        from tensorboardX import SummaryWriter
+    finally:
+        if hide:
+            del sys.modules["torch"]
+    return SummaryWriter
+
+
+class Scalars:
+    """TensorBoard scalar writer; `purge_step` hides events past a resumed checkpoint."""
+
+    def __init__(self, log_dir: str | os.PathLike, purge_step: int | None = None):
+        self._writer = _summary_writer()(str(log_dir), purge_step=purge_step, flush_secs=30)
+
+    def write(self, step: int, scalars: dict[str, float]) -> None:
+        finite = {k: float(v) for k, v in scalars.items() if np.isfinite(v)}
+        for name, value in finite.items():  # a non-finite one is the divergence watch's to report
+            self._writer.add_scalar(name, value, int(step))
+        tracking.log(step, finite)  # `adarl train --track`: the same scalars to W&B
+
+    def close(self) -> None:
+        try:
+            self._writer.close()
+        except OSError:  # TensorBoard events are a convenience; the CSVs are the record
+            pass

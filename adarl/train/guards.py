@@ -1,0 +1,77 @@
+"""Checks that stop a training run with one line: replay buffers larger than the machine's
+memory (before anything is written) and training that diverged (docs/reliability.md)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from adarl.errors import ON_DIVERGENCE, Diverged, UsageError
+from adarl.runs.checkpoints import checkpoint_dirs
+
+
+def check_memory(nbytes: int, what: str) -> None:
+    """A one-line UsageError if `what` needs more bytes than the machine's physical memory."""
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # not knowable here: do not guess
+        return
+    if nbytes > total:
+        raise UsageError(
+            f"{what} need {nbytes / 2**30:.1f} GiB but this machine has {total / 2**30:.1f} GiB "
+            "of memory; lower --buffer-size or train fewer seeds per run"
+        )
+
+
+class DivergenceWatch:
+    """Non-finite losses, parameters and returns, per seed, checked at each logging point.
+
+    `note(quantity, seeds)` records them; `check(step)` then stops the run with `Diverged` (exit
+    code 3; no DONE; the last checkpoint stays the last good one) or, with `--on-divergence
+    continue`, prints one warning line the first time and goes on.
+    """
+
+    def __init__(self, run_dir: str | os.PathLike, mode: str = "stop"):
+        self.run_dir = Path(run_dir)
+        self.mode = mode if mode in ON_DIVERGENCE else "stop"
+        self.found: dict[str, list[int]] = {}
+        self.warned = False
+
+    def note(self, quantity: str, seeds) -> None:
+        seeds = [int(s) for s in seeds]
+        if seeds:
+            known = self.found.setdefault(quantity, [])
+            known.extend(s for s in seeds if s not in known)
+
+    def note_values(self, quantity: str, seeds, values) -> None:
+        """Note the seeds whose `values` (one per seed, or per seed × anything) are not all
+        finite."""
+        values = np.asarray(values, dtype=np.float64).reshape(len(seeds), -1)
+        self.note(quantity, [s for s, ok in zip(seeds, np.isfinite(values).all(axis=1)) if not ok])
+
+    def check(self, step: int) -> None:
+        if not self.found:
+            return
+        what = "; ".join(
+            f"{q} (seed{'s' * (len(s) > 1)} {', '.join(map(str, sorted(s)))})"
+            for q, s in self.found.items()
+        )
+        self.found = {}
+        good = checkpoint_dirs(self.run_dir)
+        kept = f"last good checkpoint {good[-1].name}" if good else "no checkpoint yet"
+        if self.mode == "stop":
+            raise Diverged(
+                f"training diverged at step {step}: non-finite {what}; {kept} "
+                "(--on-divergence continue keeps training)"
+            )
+        if not self.warned:
+            print(
+                f"adarl: warning: training diverged at step {step}: non-finite {what}; "
+                "continuing (--on-divergence continue)",
+                file=sys.stderr,
+                flush=True,
+            )
+            self.warned = True
