@@ -19,9 +19,8 @@ LAYERS = [
     {"sweeps"},
     {"cli"},
 ]
-# `adarl` itself only sets `__version__` and registers the Gymnasium ids; a sweep worker is a
-# process entry point that runs `adarl train` as the CLI does
-EXEMPT = {("__init__", "envs"), ("sweeps.worker", "cli")}
+# `adarl` itself only sets `__version__` and registers the Gymnasium ids
+EXEMPT = {("__init__", "envs")}
 
 
 def _layer(part: str) -> int:
