@@ -20,9 +20,8 @@ LAYERS = [
     {"sweeps"},
     {"cli"},
 ]
-# `adarl` itself only sets `__version__` and registers the Gymnasium ids; a sweep worker is a
-# process entry point that runs `adarl train` as the CLI does
-EXEMPT = {("__init__", "envs"), ("sweeps.worker", "cli")}
+# `adarl` itself only sets `__version__` and registers the Gymnasium ids
+EXEMPT = {("__init__", "envs")}
 # of the layers below it, the run format reads only the ground floor and the algorithm registry
 # (JAX-free: it turns a config.yaml back into a config), never the environments or the maths
 ONLY = {"runs": {"__init__", "__version__", "errors", "files", "algos.registry"}}

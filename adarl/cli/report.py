@@ -37,8 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="leave out runs without a complete checkpoint instead of failing",
     )  # fmt: skip
     parser.add_argument(
-        "--rnac-checkpoint", default="final", metavar="final|best",
-        help="RNAC's final checkpoint (default), or its best by evaluation as its original reports",
+        "--best-checkpoint", default="final", metavar="final|best",
+        help="score the algorithms that keep a best policy (RNAC) at their final checkpoint "
+        "(default), or at their best by evaluation, as RNAC's original reports",
     )  # fmt: skip
     parser.add_argument(
         "--contrast", action="append", default=[], metavar="FIELD[=REFERENCE]",
@@ -62,8 +63,8 @@ def command_line(args: argparse.Namespace) -> str:
         parts += ["--seed", str(args.seed)]
     if args.skip_incomplete:
         parts.append("--skip-incomplete")
-    if args.rnac_checkpoint != "final":
-        parts += ["--rnac-checkpoint", args.rnac_checkpoint]
+    if args.best_checkpoint != "final":
+        parts += ["--best-checkpoint", args.best_checkpoint]
     for contrast in args.contrast:
         parts += ["--contrast", contrast]
     if args.last_k != 5:
@@ -79,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         skip_incomplete=args.skip_incomplete,
         command=command_line(args),
-        rnac_checkpoint=args.rnac_checkpoint,
+        best_checkpoint=args.best_checkpoint,
         contrasts=tuple(args.contrast),
         last_k=args.last_k,
     )

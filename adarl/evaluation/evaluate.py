@@ -1,8 +1,9 @@
 """Evaluating the saved policies of runs under chosen dynamics or over a dynamics grid.
 
 `plan` turns runs and an `EvalSpec` into work units (one seed's policy at one grid point),
-checking everything first; `execute` runs the units, over a process pool when asked (policies are
-NumPy files, so workers need no JAX); `evaluate_runs` does both and returns one table per run;
+checking everything first; `adarl.evaluation.parallel` runs them (over a pool of spawned processes
+or Ray; policies are NumPy files, so workers need no JAX); `evaluate_runs` does both and returns
+one table per run;
 `write_evaluation` stores a table as `RUN_DIR/evaluations/<name>.csv` with a JSON sidecar that
 records how it was made (the report reads both).
 
@@ -13,11 +14,7 @@ face the same initial states and the same seed gives the same returns.
 
 from __future__ import annotations
 
-import multiprocessing
-import os
-import sys
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +23,7 @@ import pandas as pd
 from adarl.envs.tasks import env_options
 from adarl.errors import UsageError
 from adarl.evaluation import grid
+from adarl.evaluation.parallel import run_units
 from adarl.evaluation.runs import Run
 from adarl.files import atomic_write_json, atomic_write_text
 from adarl.runs.checkpoints import policy_files, select_checkpoint
@@ -149,69 +147,30 @@ def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
 
 
 # ----------------------------------------------------------------------------- running
-def run_unit(unit: Unit) -> list[dict]:
-    """Run one unit's episodes; rows carry `step, seed, dynamics` in front."""
-    from adarl.envs.rollout import run_episodes
-    from adarl.policy import load
-
-    policy = load(unit.policy_path)
-    rows = run_episodes(
-        policy,
-        unit.task,
-        unit.dynamics,
-        unit.episodes,
-        unit.eval_seed,
-        max_steps=unit.max_steps,
-        **dict(unit.point),
-        **dict(unit.env),
-    )
-    head = {"step": unit.step, "seed": unit.seed, "dynamics": unit.label}
-    return [{**head, **row} for row in rows]
-
-
-def default_workers() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-def start_method() -> str:
-    """`fork` (fast, no re-import of the caller's main module) unless JAX is loaded in this
-    process or the platform lacks it; then `spawn` (forking a multithreaded JAX process is unsafe)."""
-    if "fork" in multiprocessing.get_all_start_methods() and "jax" not in sys.modules:
-        return "fork"
-    return "spawn"
-
-
-def execute(
-    units: Sequence[Unit], workers: int | None = None, method: str | None = None
-) -> list[list[dict]]:
-    """Run `units`, in order; over a pool of `workers` processes when more than one.
-
-    Results come back in the order of `units` whatever the number of workers, so output files
-    do not depend on it. `method` is the multiprocessing start method (default: `start_method()`).
-    """
-    workers = default_workers() if workers is None else workers
-    if workers < 1:
-        raise UsageError(f"--workers must be ≥ 1, got {workers}")
-    workers = min(workers, len(units))
-    if workers <= 1:
-        return [run_unit(u) for u in units]
-    context = multiprocessing.get_context(method or start_method())
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        return list(pool.map(run_unit, units, chunksize=1))
-
-
 def evaluate_runs(
     runs: Sequence[Run],
     spec: EvalSpec,
     workers: int | None = None,
-    method: str | None = None,
+    backend: str = "local",
+    address: str | None = None,
+    progress: bool = False,
 ) -> list[pd.DataFrame]:
-    """Evaluate every seed of every run; one table per run (columns `COLUMNS` then `p_*`)."""
-    units = plan(runs, spec)
-    results = execute(units, workers, method)
+    """Evaluate every seed of every run; one table per run (columns `COLUMNS` then `p_*`).
+    `workers`, `backend`, `address`: as `parallel.run_units`."""
+    return tables(runs, plan(runs, spec), workers, backend, address, progress, "evaluate")
+
+
+def tables(
+    runs: Sequence[Run],
+    units: Sequence[Unit],
+    workers: int | None = None,
+    backend: str = "local",
+    address: str | None = None,
+    progress: bool = False,
+    desc: str = "evaluate",
+) -> list[pd.DataFrame]:
+    """Run the `units` planned for `runs` (`parallel.run_units`); one episode table per run."""
+    results = run_units(units, workers, backend, address, progress, desc)
     per_run: list[list[dict]] = [[] for _ in runs]
     for unit, rows in zip(units, results):
         per_run[unit.run_index].extend(rows)

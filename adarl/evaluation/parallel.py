@@ -1,5 +1,6 @@
-"""Running evaluation units (one seed's policy at one grid point, `adarl.evaluation.evaluate.Unit`)
-in parallel, with a progress bar: over a pool of local processes, or over Ray.
+"""The one evaluation engine: running evaluation units (one seed's policy at one grid point,
+`adarl.evaluation.evaluate.Unit`) in parallel, with a progress bar, over a pool of local
+processes or over Ray. `adarl evaluate` and `adarl evaluate --suite` both run through it.
 
 Local workers are started with `spawn`: a forked child of a process that has loaded JAX (a test
 run, a notebook) can deadlock on JAX's threads, and a spawned one costs only its imports (no JAX:
@@ -10,6 +11,7 @@ the number of workers, so the files written do not depend on them.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -17,6 +19,33 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from adarl.errors import UsageError, check_choice
 
 BACKENDS = ("local", "ray")
+
+
+def run_unit(unit) -> list[dict]:
+    """Run one unit's episodes; rows carry `step, seed, dynamics` in front."""
+    from adarl.envs.rollout import run_episodes
+    from adarl.policy import load
+
+    policy = load(unit.policy_path)
+    rows = run_episodes(
+        policy,
+        unit.task,
+        unit.dynamics,
+        unit.episodes,
+        unit.eval_seed,
+        max_steps=unit.max_steps,
+        **dict(unit.point),
+        **dict(unit.env),
+    )
+    head = {"step": unit.step, "seed": unit.seed, "dynamics": unit.label}
+    return [{**head, **row} for row in rows]
+
+
+def default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def run_units(
@@ -27,14 +56,12 @@ def run_units(
     progress: bool = True,
     desc: str = "evaluate",
 ) -> list[list[dict]]:
-    """Each unit's episode rows (`evaluate.run_unit`), in the order of `units`.
+    """Each unit's episode rows (`run_unit`), in the order of `units`.
 
     `backend`: `local` (a `spawn` process pool of `workers`, default all cores; one worker runs
     in this process) or `ray` (one Ray task per unit, on a local Ray instance of `workers` CPUs
     or on the cluster at `address`)."""
     check_choice("backend", backend, BACKENDS)
-    from adarl.evaluation.evaluate import default_workers
-
     workers = default_workers() if workers is None else workers
     if workers < 1:
         raise UsageError(f"--workers must be ≥ 1, got {workers}")
@@ -53,8 +80,6 @@ def run_units(
 
 
 def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
-    from adarl.evaluation.evaluate import run_unit
-
     if workers <= 1:
         results = []
         for unit in units:
@@ -77,7 +102,6 @@ def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
 
 def _run_ray(units: Sequence, workers: int, address: str | None, bar) -> list[list[dict]]:
     from adarl.cluster import connect_ray
-    from adarl.evaluation.evaluate import run_unit
 
     ray = connect_ray(address, workers)
     try:

@@ -16,7 +16,8 @@ Layout of the report folder::
     tables/differences.{md,csv}  AdaRL − each baseline per task: Welch CI, permutation p, power
     tables/probability_of_improvement.{md,csv}
     tables/performance_profiles.csv
-    tables/parseval.{md,csv}     every Parseval coefficient's cell (Table 1 keeps the best)
+    tables/best-of-<algo>.{md,csv}  every value's cell of a best-of family (Table 1 keeps the
+                                 best; today sac-parseval's coefficient)
     tables/contrast_FIELD.{md,csv}  with --contrast FIELD: differences along one setting, CIs
     tables/control_pairs.{md,csv}   AdaRL minus its schedule-matched control, seed by seed
     tables/fixed_rank.{md,csv}   score per fixed rank (bias–variance sweep)
@@ -74,7 +75,9 @@ class ReportOptions:
     seed: int = 0
     skip_incomplete: bool = False
     command: str = ""
-    rnac_checkpoint: str = "final"  # final, or best (by evaluation, as RNAC's original reports)
+    # algorithms that keep a best policy (RNAC): their final checkpoint, or their best by
+    # evaluation (as RNAC's original reports)
+    best_checkpoint: str = "final"
     contrasts: tuple[str, ...] = ()  # FIELD or FIELD=REFERENCE: differences along one setting
     last_k: int = 5  # a seed's score: the mean of its last k evaluations (eval.csv)
     power: float = 0.8  # power of the comparisons' "detectable difference" (two-sided t-test)
@@ -127,7 +130,7 @@ def build_report(
         raise UsageError(f"--bootstrap-reps must be ≥ 1, got {options.bootstrap_reps}")
     if options.last_k < 1:
         raise UsageError(f"--last-k must be ≥ 1, got {options.last_k}")
-    check_choice("--rnac-checkpoint", options.rnac_checkpoint, selection.RNAC_CHECKPOINTS)
+    check_choice("--best-checkpoint", options.best_checkpoint, selection.BEST_CHECKPOINTS)
     score_files = [scores_file(p) for p in paths]
     if any(score_files):
         return _build_from_scores(paths, score_files, out, options)
@@ -279,10 +282,10 @@ def _swap_into_place(tmp: Path, out: Path) -> None:
 def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: list[str]) -> None:
     (folder / "tables").mkdir(parents=True)
     (folder / "figures").mkdir()
-    best_rnac = options.rnac_checkpoint == "best"
-    if best_rnac:
+    best = options.best_checkpoint == "best"
+    if best:
         runs = [
-            replace(r, label=f"{r.label} ({selection.RNAC_BEST_LABEL})")
+            replace(r, label=f"{r.label} ({selection.BEST_CHECKPOINT_LABEL})")
             if registry.keeps_best_policy(r.algo)
             else r
             for r in runs
@@ -292,7 +295,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     fixed = [r for r in runs if registry.role(r.algo, "rank_sweep")]
     main = [r for r in runs if not registry.role(r.algo, "rank_sweep")] or fixed
     finals = {
-        r.path: run_scores(r, options.last_k, best_rnac and registry.keeps_best_policy(r.algo))
+        r.path: run_scores(r, options.last_k, best and registry.keeps_best_policy(r.algo))
         for r in runs
     }
     for r in runs:
@@ -301,20 +304,19 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
                 f"{r.path} has no nominal evaluation (neither `adarl evaluate --dynamics nominal` "
                 "of its final checkpoint nor `nominal` rows in eval.csv); it is left out of the tables."
             )
-    parseval = selection.select_parseval(main, _long_scores(main, finals))
-    scores = parseval.scores
-    notes += parseval.notes
+    chosen = selection.select_best_of(main, _long_scores(main, finals))
+    scores = chosen.scores
+    notes += chosen.notes
     notes += few_evaluations_notes(_long_scores(runs, finals), options.last_k)
-    colours = figures.method_colours([r.label for r in runs] + list(parseval.labels.values()))
+    colours = figures.method_colours([r.label for r in runs] + chosen.labels)
     score_note = ScoreNote(score_line(scores, options.last_k), final_sources(finals.values()))
 
     sections = [runs_section(runs, finals, folder)]
     sections.append(scores_section(_long_scores(runs, finals), scores, finals, options, folder))
     sections.append(
-        table1_section(scores, folder, protocol_notes(runs, parseval, options), score_note)
+        table1_section(scores, folder, protocol_notes(runs, chosen, options), score_note)
     )
-    if not parseval.cells.empty:
-        sections.append(parseval_section(parseval, folder))
+    sections += [best_of_section(family, folder) for family in chosen.families]
     sections.append(behaviour_section(main, folder))
     sections += statistics_sections(scores, folder, options, notes, score_note)
     sections += [contrast_section(main, finals, c, folder, options) for c in options.contrasts]
@@ -418,7 +420,7 @@ def score_line(scores: pd.DataFrame, k: int) -> str:
     others = scores[~scores.index.isin(logged.index)]
     if not others.empty:
         labels = sorted(set(others["task"] + " " + others["method"]))
-        best = [lab for lab in labels if selection.RNAC_BEST_LABEL in lab]
+        best = [lab for lab in labels if selection.BEST_CHECKPOINT_LABEL in lab]
         rest = [lab for lab in labels if lab not in best]
         if best:
             parts.append(f"{', '.join(best)}: the best checkpoint's evaluation return")
@@ -610,46 +612,50 @@ def behaviour_section(runs: list[Run], folder: Path) -> Section:
 
 
 def protocol_notes(
-    runs: Sequence[Run], parseval: selection.ParsevalSelection, options: ReportOptions
+    runs: Sequence[Run], chosen: selection.Selection, options: ReportOptions
 ) -> list[str]:
-    """One line per method label that carries a protocol choice: Parseval's selected
-    coefficient, RNAC's final or best checkpoint."""
+    """One line per method label that carries a protocol choice: the value a best-of family
+    was selected at (Parseval's coefficient), a best-policy algorithm's final or best
+    checkpoint (RNAC's)."""
     lines = []
-    for label in sorted(set(parseval.labels.values())):
-        tasks = [t for t, lab in parseval.labels.items() if lab == label]
-        chosen = parseval.cells[parseval.cells["selected"] & parseval.cells["task"].isin(tasks)]
-        picks = ", ".join(
-            f"{t} {selection.coef_text(c)}" for t, c in zip(chosen["task"], chosen[selection.COEF])
-        )
-        n = int(re.search(r"best of (\d+)", label).group(1))
+    for family in chosen.families:
+        for label in sorted(set(family.labels.values())):
+            tasks = [t for t, lab in family.labels.items() if lab == label]
+            cells = family.cells
+            picked = cells[cells["selected"] & cells["task"].isin(tasks)]
+            picks = ", ".join(
+                f"{t} {selection.value_text(v)}"
+                for t, v in zip(picked["task"], picked[family.field])
+            )
+            n = int(re.search(r"best of (\d+)", label).group(1))
+            lines.append(
+                f"{label}: {selection.BEST_OF_NOTE.format(n=n, field=family.field)}; chosen "
+                f"{family.field}: {picks}; every value: tables/{family.table_stem}.md."
+            )
+    kept = ", ".join(sort_methods(r.label for r in runs if registry.keeps_best_policy(r.algo)))
+    if kept and options.best_checkpoint == "best":
+        lines.append(f"{kept}: {selection.BEST_CHECKPOINT_NOTE}.")
+    elif kept:
         lines.append(
-            f"{label}: {selection.PARSEVAL_NOTE.format(n=n)}; chosen coefficient: {picks}; "
-            "every coefficient: tables/parseval.md."
-        )
-    rnac = ", ".join(sort_methods(r.label for r in runs if registry.keeps_best_policy(r.algo)))
-    if rnac and options.rnac_checkpoint == "best":
-        lines.append(f"{rnac}: {selection.RNAC_BEST_NOTE}.")
-    elif rnac:
-        lines.append(
-            f"{rnac}: the final checkpoint (`--rnac-checkpoint best` shows RNAC's best "
-            "checkpoint by evaluation, as its original reports)."
+            f"{kept}: the final checkpoint (`--best-checkpoint best` shows the best checkpoint "
+            "by evaluation, as RNAC's original reports)."
         )
     return lines
 
 
-def parseval_section(parseval: selection.ParsevalSelection, folder: Path) -> Section:
-    md = selection.parseval_markdown(parseval.cells)
+def best_of_section(family: selection.BestOf, folder: Path) -> Section:
+    md = selection.best_of_markdown(family)
     files = [
-        _write(folder, "tables/parseval.md", md),
-        _write(folder, "tables/parseval.csv", _csv(parseval.cells)),
+        _write(folder, f"tables/{family.table_stem}.md", md),
+        _write(folder, f"tables/{family.table_stem}.csv", _csv(family.cells)),
     ]
     text = (
-        "Score under nominal dynamics (Table 1's) of `sac-parseval` at each coefficient, mean ± "
-        "standard deviation over seeds. As in the paper, Table 1 and the statistics report, per "
-        "task, the coefficient with the highest mean (in bold; ties: the larger coefficient), "
-        "chosen on the same metric it reports, so that cell is optimistic.\n\n" + md
+        f"Score under nominal dynamics (Table 1's) of `{family.algo}` at each value of "
+        f"{family.field}, mean ± standard deviation over seeds. As in the paper, Table 1 and the "
+        "statistics report, per task, the value with the highest mean (in bold; ties: the larger "
+        "value), chosen on the same metric it reports, so that cell is optimistic.\n\n" + md
     )
-    return Section("Supplementary: Parseval coefficients", text, files)
+    return Section(f"Supplementary: {family.algo} at each {family.field}", text, files)
 
 
 def contrast_groups(runs: Sequence[Run], contrast: str) -> tuple[str, str, dict]:

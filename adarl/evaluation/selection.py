@@ -1,11 +1,14 @@
-"""The baselines' protocol choices made after training, as the paper reports them.
+"""The protocol choices the report makes after training, as the paper reports them.
 
-* **Parseval's coefficient.** The paper trains `sac-parseval` with each coefficient in
-  {1e-3, 1e-4, 1e-5} and reports the best per task. `select_parseval` does the same on a
-  report's long scores (`task, method, seed, score, run`): per task, the coefficient whose runs
-  have the highest mean final return (the Table 1 cell), under one label.
-* **RNAC's checkpoint.** RNAC's original reports its best checkpoint by evaluation; the RNAC
-  trainer keeps it next to the final one (docs/rnac.md), and `collect.best_scores` reads it.
+* **Best of N.** An algorithm with a `best_of` field in the registry (today `sac-parseval`'s
+  coefficient: the paper trains it at {1e-3, 1e-4, 1e-5} and reports the best per task) is
+  reported at its best value of that field per task. `select_best_of` does this for every such
+  family on a report's long scores (`task, method, seed, score, run`): per task, the value whose
+  runs have the highest mean final return (the Table 1 cell), under one label.
+* **Best checkpoint.** An algorithm whose trainer keeps each seed's best policy by evaluation
+  (the registry's `best_policy`, RNAC's as its original reports) is scored at its final
+  checkpoint, or at its best with `adarl report --best-checkpoint best`; `collect.best_scores`
+  reads it.
 """
 
 from __future__ import annotations
@@ -20,106 +23,141 @@ from adarl.algos import registry
 from adarl.evaluation import tables
 from adarl.evaluation.runs import Run, config_value, differing_fields, sort_tasks
 
-# the algorithm whose best setting per task the main table keeps, and that setting (the
-# registry's `best_of` role; the notes below are worded for Parseval's coefficient, its one user)
-((PARSEVAL, COEF),) = [(a.name, a.best_of) for a in registry.ALGORITHMS.values() if a.best_of]
-PARSEVAL_NOTE = "best of {n} coefficients (selected on the reported metric, as in the paper)"
-RNAC_CHECKPOINTS = ("final", "best")
-RNAC_BEST_LABEL = "best checkpoint"
-RNAC_BEST_NOTE = (
+BEST_OF_NOTE = "best of {n} values of {field} (selected on the reported metric, as in the paper)"
+BEST_CHECKPOINTS = ("final", "best")
+BEST_CHECKPOINT_LABEL = "best checkpoint"
+BEST_CHECKPOINT_NOTE = (
     "each seed's best checkpoint by mean nominal evaluation return during training (selected on "
     "the reported metric, as RNAC's original reports it); its score is that evaluation's return"
 )
 
 
-def coef_text(coef: float) -> str:
-    """1e-3 for 0.001; exact for any coefficient."""
-    return np.format_float_scientific(coef, trim="-", exp_digits=1)
+def best_of_families() -> dict[str, str]:
+    """Every algorithm reported at its best value of a field -> that field (registry order)."""
+    return {a.name: a.best_of for a in registry.ALGORITHMS.values() if a.best_of}
 
 
-def parseval_label(n: int) -> str:
-    """The method label of the selected coefficient in the main table."""
-    return f"{PARSEVAL} (best of {n})"
+def value_text(value: float) -> str:
+    """A field value in labels and headers: 1e-3 for 0.001 (exact), 7 for 7.0, 0.5 for 0.5."""
+    value = float(value)
+    if value != 0 and not 1e-2 <= abs(value) < 1e4:
+        return np.format_float_scientific(value, trim="-", exp_digits=1)
+    return f"{value:g}"
+
+
+def best_of_label(algo: str, n: int) -> str:
+    """The method label of the selected value in the main table."""
+    return f"{algo} (best of {n})"
 
 
 @dataclass
-class ParsevalSelection:
-    """What `select_parseval` did: the scores to report, every coefficient's cell, notes."""
+class BestOf:
+    """One family's selection: every value's cell per task, and the label per task where a
+    value was selected."""
+
+    algo: str
+    field: str
+    cells: pd.DataFrame  # task, <field>, seeds, mean, std, selected
+    labels: dict[str, str] = field(default_factory=dict)  # task -> label in the main table
+
+    @property
+    def table_stem(self) -> str:
+        """tables/<stem>.{md,csv} of the report: every value's cell."""
+        return f"best-of-{self.algo}"
+
+
+@dataclass
+class Selection:
+    """What `select_best_of` did: the scores to report, each family's cells, notes."""
 
     scores: pd.DataFrame
-    cells: pd.DataFrame  # task, parseval_coef, seeds, mean, std, selected
-    labels: dict[str, str] = field(default_factory=dict)  # task -> label in the main table
+    families: list[BestOf] = field(default_factory=list)  # those with a selection
     notes: list[str] = field(default_factory=list)
 
+    @property
+    def labels(self) -> list[str]:
+        return [label for f in self.families for label in f.labels.values()]
 
-def select_parseval(runs: Sequence[Run], scores: pd.DataFrame) -> ParsevalSelection:
-    """Per task with `sac-parseval` runs at two or more coefficients that differ in nothing else,
-    keep the coefficient with the highest mean final return (ties: the larger coefficient) and
-    relabel its scores `sac-parseval (best of N)`; drop the other coefficients' scores."""
-    cells, labels, notes = [], {}, []
+
+def select_best_of(runs: Sequence[Run], scores: pd.DataFrame) -> Selection:
+    """For every best-of family and task whose runs span two or more values of its field and
+    differ in nothing else, keep the value with the highest mean final return (ties: the larger
+    value) and relabel its scores `<algo> (best of N)`; drop the other values' scores."""
+    selection = Selection(scores)
+    for algo, name in best_of_families().items():
+        family = _select(algo, name, runs, selection)
+        if family.labels:
+            selection.families.append(family)
+    selection.scores = selection.scores.reset_index(drop=True)
+    return selection
+
+
+def _select(algo: str, name: str, runs: Sequence[Run], selection: Selection) -> BestOf:
+    cells, labels = [], {}
     by_task: dict[str, list[Run]] = {}
     for run in runs:
-        if run.algo == PARSEVAL and config_value(run.config, COEF) is not None:
+        if run.algo == algo and config_value(run.config, name) is not None:
             by_task.setdefault(run.task, []).append(run)
-    out = scores
+    out = selection.scores
     for task in sort_tasks(by_task):
         group = by_task[task]
-        coefs = {float(config_value(r.config, COEF)) for r in group}
-        if len(coefs) < 2:
+        values = {float(config_value(r.config, name)) for r in group}
+        if len(values) < 2:
             continue
-        other = _other_differences(group)
+        other = differing_fields([r.config for r in group], ignore={name})
         if other:
-            notes.append(
-                f"{PARSEVAL} runs on {task} differ in {', '.join(other)} as well as {COEF}; "
-                "no coefficient was selected (each is shown on its own)."
+            selection.notes.append(
+                f"{algo} runs on {task} differ in {', '.join(other)} as well as {name}; "
+                "no value was selected (each is shown on its own)."
             )
             continue
-        paths = {str(r.path): float(config_value(r.config, COEF)) for r in group}
-        rows = scores[scores["run"].isin(paths)]
+        paths = {str(r.path): float(config_value(r.config, name)) for r in group}
+        rows = out[out["run"].isin(paths)]
         if rows.empty:
             continue
-        rows = rows.assign(coef=rows["run"].map(paths))
-        task_cells = coefficient_cells(rows)
+        rows = rows.assign(value=rows["run"].map(paths))
+        task_cells = value_cells(rows, name)
         cells.append(task_cells)
-        best = float(task_cells.loc[task_cells["selected"], COEF].iloc[0])
-        labels[task] = label = parseval_label(len(coefs))
-        keep = rows.index[rows["coef"] == best]
-        drop = rows.index.difference(keep)
-        out = out.drop(index=drop)
+        best = float(task_cells.loc[task_cells["selected"], name].iloc[0])
+        labels[task] = label = best_of_label(algo, len(values))
+        keep = rows.index[rows["value"] == best]
+        out = out.drop(index=rows.index.difference(keep))
         out.loc[keep, "method"] = label
-    columns = [*("task", COEF, "seeds", "mean", "std"), "selected"]
+    selection.scores = out
+    columns = ["task", name, "seeds", "mean", "std", "selected"]
     cells = pd.concat(cells, ignore_index=True) if cells else pd.DataFrame(columns=columns)
-    return ParsevalSelection(out.reset_index(drop=True), cells, labels, notes)
+    return BestOf(algo, name, cells, labels)
 
 
-def coefficient_cells(rows: pd.DataFrame) -> pd.DataFrame:
-    """Per task and coefficient (`task, coef, seed, score` rows): seeds, mean, std over seeds
-    and `selected`, true for the highest mean per task (ties: the larger coefficient)."""
+def value_cells(rows: pd.DataFrame, name: str) -> pd.DataFrame:
+    """Per task and value of field `name` (`task, value, seed, score` rows): seeds, mean, std
+    over seeds and `selected`, true for the highest mean per task (ties: the larger value)."""
     from adarl.evaluation.stats import mean_std
 
     out = []
     for task, per_task in rows.groupby("task", sort=False):
         cells = []
-        for coef, g in per_task.groupby("coef"):
+        for value, g in per_task.groupby("value"):
             m, s = mean_std(g["score"].to_numpy(float))
-            cells.append({"task": task, COEF: float(coef), "seeds": len(g), "mean": m, "std": s})
-        cells.sort(key=lambda c: -c[COEF])
+            cells.append({"task": task, name: float(value), "seeds": len(g), "mean": m, "std": s})
+        cells.sort(key=lambda c: -c[name])
         means = [c["mean"] if np.isfinite(c["mean"]) else -np.inf for c in cells]
         top = int(np.argmax(means))
         for i, c in enumerate(cells):
             c["selected"] = i == top
         out += cells
-    return pd.DataFrame(out, columns=["task", COEF, "seeds", "mean", "std", "selected"])
+    return pd.DataFrame(out, columns=["task", name, "seeds", "mean", "std", "selected"])
 
 
-def parseval_markdown(cells: pd.DataFrame) -> str:
-    """Task rows × coefficient columns, mean ± std over seeds, the selected cell in bold."""
-    coefs = sorted(set(cells[COEF]), reverse=True)
+def best_of_markdown(family: BestOf) -> str:
+    """Task rows × value columns, mean ± std over seeds, the selected cell in bold."""
+    cells, name = family.cells, family.field
+    values = sorted(set(cells[name]), reverse=True)
     body = []
     for task in sort_tasks(cells["task"]):
         row = [task]
-        for coef in coefs:
-            hit = cells[(cells["task"] == task) & (cells[COEF] == coef)]
+        for value in values:
+            hit = cells[(cells["task"] == task) & (cells[name] == value)]
             if hit.empty:
                 row.append(tables.DASH)
                 continue
@@ -127,12 +165,7 @@ def parseval_markdown(cells: pd.DataFrame) -> str:
             text = tables.format_mean_std(c["mean"], c["std"], int(c["seeds"]))
             row.append(f"**{text}**" if c["selected"] and text != tables.DASH else text)
         chosen = cells[(cells["task"] == task) & cells["selected"]]
-        row.append(coef_text(float(chosen[COEF].iloc[0])) if not chosen.empty else tables.DASH)
+        row.append(value_text(float(chosen[name].iloc[0])) if not chosen.empty else tables.DASH)
         body.append(row)
-    header = ["task", *(f"{COEF}={coef_text(c)}" for c in coefs), "selected"]
+    header = ["task", *(f"{name}={value_text(v)}" for v in values), "selected"]
     return tables.markdown_table(header, body)
-
-
-def _other_differences(group: Sequence[Run]) -> list[str]:
-    """Config fields (besides the coefficient and launch fields) that differ within `group`."""
-    return differing_fields([r.config for r in group], ignore={COEF})

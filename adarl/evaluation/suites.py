@@ -297,15 +297,10 @@ def run_suite(
     **kwargs,
 ) -> list[pd.DataFrame]:
     """Evaluate every seed of every run on suite `name`; one episode table per run."""
-    from adarl.evaluation.evaluate import _table
-    from adarl.evaluation.parallel import run_units
+    from adarl.evaluation.evaluate import tables
 
     units = plan_suite(runs, name, episodes, points, **kwargs)
-    results = run_units(units, workers, backend, address, progress, desc=f"suite {name}")
-    per_run: list[list[dict]] = [[] for _ in runs]
-    for unit, rows in zip(units, results):
-        per_run[unit.run_index].extend(rows)
-    return [_table(rows) for rows in per_run]
+    return tables(runs, units, workers, backend, address, progress, desc=f"suite {name}")
 
 
 def write_suite(

@@ -27,6 +27,7 @@ import dataclasses
 import fcntl
 import json
 import os
+import shlex
 import signal
 import time
 from collections import Counter
@@ -39,7 +40,7 @@ from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.backends import thread_env
 from adarl.sweeps.spec import Sweep, Unit
-from adarl.sweeps.worker import EXIT_BUSY
+from adarl.sweeps.worker import EXIT_BUSY, unit_record
 
 POLL_S = 1.0  # how often the loop looks for finished and started units
 NOT_RETRIED = {
@@ -54,7 +55,8 @@ class Options:
     max_retries: int = 2  # further attempts per unit after a crash, in one invocation
     progress_every: float = 60.0  # seconds between progress lines of running units
     command: str = ""
-    train_extra: tuple[str, ...] = ()  # `adarl train` flags that change no result (--track)
+    # the tracking flags of every unit's worker, as `adarl train` takes them (--track ...)
+    train_extra: tuple[str, ...] = ()
     train_env: dict[str, str] = dataclasses.field(default_factory=dict)  # added to the units'
 
 
@@ -225,9 +227,9 @@ class SweepRun:
                 str(self.state_file(unit, "started.json")),
                 "--attempt",
                 str(attempt),
-                *(f"--train-extra={flag}" for flag in self.options.train_extra),
-                "--",
-                *train_args,
+                *self.options.train_extra,
+                f"--unit={json.dumps(unit_record(unit, self.out))}",
+                f"--train-flags={shlex.join(train_args)}",
             ],
             "log": str(self.out / "logs" / f"{unit.flat_id}.log"),
             "env": self.env,

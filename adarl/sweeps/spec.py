@@ -1,8 +1,8 @@
 """Sweep files: parse a YAML spec (or a shipped preset), check everything, expand it into units.
 
-A unit is one task × one algorithm entry × one group of seeds: exactly one `adarl train` run,
-whose seeds are vmapped together in one process. Each unit carries the `adarl train` flags that
-start it, already checked by the trainer's own config builder, so a bad spec fails here, with a
+A unit is one task × one algorithm entry × one group of seeds: exactly one training run, whose
+seeds are vmapped together in one process. Each unit carries the config it trains, resolved as
+`adarl train` resolves its flags (`registry.resolve_config`), so a bad spec fails here, with a
 one-line `UsageError`, before anything starts. The format is documented in docs/sweeps.md.
 """
 
@@ -43,7 +43,8 @@ RESERVED_FIELDS = {"algo": "algos", "task": "tasks", "seeds": "seeds", "total_st
 
 @dataclass(frozen=True)
 class Unit:
-    """One run of the sweep: `adarl train *train_args --out <sweep>/<id>`."""
+    """One run of the sweep, trained into `<sweep>/<id>`: `config`, or for a fork, the run of
+    unit `fork_of` at step `fork_step` with the fields in `flags` changed."""
 
     id: str  # "<task>/<label>/seeds-<...>", also the run folder relative to the sweep folder
     task: str
@@ -51,7 +52,10 @@ class Unit:
     label: str
     seeds: tuple[int, ...]
     total_steps: int
-    train_args: tuple[str, ...]
+    preset: str | None  # the preset `config` was resolved with (None: the algorithm's default)
+    # the fields the sweep sets over the preset, as flag text (field -> text), in flag order;
+    # for a fork, the fields that change
+    flags: dict[str, str] = field(hash=False)
     config: object = field(compare=False, repr=False)  # the SACConfig / RNACConfig it trains
     fork_of: str | None = None  # a fork: the id of the unit it starts from (docs/sweeps.md)
     fork_step: int = 0  # … at this step of that unit (its pre-truncation checkpoint)
@@ -60,6 +64,18 @@ class Unit:
     def flat_id(self) -> str:
         """The id as one file name (for logs and lock files)."""
         return self.id.replace("/", "__")
+
+    @property
+    def train_args(self) -> tuple[str, ...]:
+        """The `adarl train` flags (--out aside) that train the same run: what `--dry-run`
+        shows and the manifest records."""
+        if self.fork_of:
+            args = ["--fork", self.fork_of, "--at", str(self.fork_step)]
+        else:
+            args = ["--algo", self.algo] + (["--preset", self.preset] if self.preset else [])
+        for name, text in self.flags.items():
+            args += [f"--{name.replace('_', '-')}", text]
+        return tuple(args)
 
 
 @dataclass(frozen=True)
@@ -179,8 +195,8 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
 
 def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:
     """Turn the units of entries with a `fork` into forks of their parents' units (same task
-    and seeds) at the parent's checkpoint before the truncation `at` names: their train args
-    become `--fork <parent unit> --at STEP` and the fields that change."""
+    and seeds) at the parent's checkpoint before the truncation `at` names, changing the fields
+    in which their config differs from the parent's."""
     from adarl.train import fork
 
     by_label = {e["label"]: e for e in entries}
@@ -218,30 +234,21 @@ def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:
             )
         if not parent.config.checkpoint_before_truncation:
             raise UsageError(f"{here}: {parent_id} keeps no checkpoint before its truncations")
-        args = ["--fork", parent_id, "--at", str(step)]
-        for name in changed:
-            if name != "algo":  # follows apply_cuts
-                args += [f"--{name.replace('_', '-')}", _flag_text(getattr(unit.config, name))]
-        out.append(
-            dataclasses.replace(unit, train_args=tuple(args), fork_of=parent_id, fork_step=step)
-        )
+        flags = {  # algo follows apply_cuts
+            name: _flag_text(getattr(unit.config, name)) for name in changed if name != "algo"
+        }
+        out.append(dataclasses.replace(unit, flags=flags, fork_of=parent_id, fork_step=step))
     return out
 
 
 def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
+    from adarl.algos import registry
+
     label, algo = entry["label"], entry["algo"]
     uid = f"{task}/{label}/seeds-{_seed_text(seeds)}"
-    args = ["--algo", algo]
-    if preset:
-        args += ["--preset", preset]
-    args += [
-        "--task",
-        task,
-        "--seeds",
-        ",".join(map(str, seeds)),
-        "--total-steps",
-        str(total_steps),
-    ]
+    # as flag text, parsed by the field's type as `adarl train` parses its flags (a YAML 1.5e5
+    # for an integer field is 150000 either way)
+    flags = {"task": task, "seeds": ",".join(map(str, seeds)), "total_steps": str(total_steps)}
     for name, value in values.items():
         if (
             name == "eval_dynamics"
@@ -249,12 +256,12 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
             and any("," in str(v) for v in value)
         ):
             raise UsageError(
-                f"{where}: {uid}: an eval_dynamics item with a comma cannot be "
-                f"passed to adarl train --eval-dynamics; got {value!r}"
+                f"{where}: {uid}: eval_dynamics items are comma-separated (as for "
+                f"adarl train --eval-dynamics), so none can hold a comma; got {value!r}"
             )
-        args += [f"--{name.replace('_', '-')}", _flag_text(value)]
+        flags[name] = _flag_text(value)
     try:
-        config = build_config(args)
+        config = registry.resolve_config(algo, preset, flags)
         envs.parse_dynamics(config.dynamics, task)
         for spec in config.eval_dynamics:
             envs.parse_dynamics(spec, task)
@@ -267,28 +274,10 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
         label=label,
         seeds=tuple(seeds),
         total_steps=int(total_steps),
-        train_args=tuple(args),
+        preset=preset,
+        flags=flags,
         config=config,
     )
-
-
-def build_config(train_args: list[str]):
-    """The config `adarl train *train_args` would train (raises the trainer's UsageError).
-    `train_args` are `--name value` pairs, as a unit's `train_args`; a later pair wins."""
-    from adarl.algos import registry
-
-    if len(train_args) % 2:
-        raise UsageError(f"flags come in --name value pairs, got {' '.join(train_args)!r}")
-    algo, preset, flags = "adarl", None, {}
-    for flag, text in zip(train_args[::2], train_args[1::2]):
-        name = flag.removeprefix("--").replace("-", "_")
-        if name == "algo":
-            algo = text
-        elif name == "preset":
-            preset = text
-        else:
-            flags[name] = text
-    return registry.resolve_config(algo, preset, flags)
 
 
 # ----------------------------------------------------------------------------- pieces

@@ -1,14 +1,16 @@
 """One attempt at one sweep unit, as its own process:
 
     python -m adarl.sweeps.worker --run-dir RUN --lock LOCK --marker MARKER --attempt K \
-        [--parent PID] [--train-extra=FLAG ...] -- TRAIN_ARGS...
+        [--parent PID] [--track --wandb-group G ...] --unit UNIT_JSON --train-flags TEXT
 
-It dies with the process that started it (Linux), holds the unit's lock file while it trains (so
-two processes can never train into the same run folder), then decides, under the lock, what the
-attempt does: nothing if the run is DONE, `adarl train --resume RUN` if the run has a complete
-checkpoint, and otherwise `adarl train TRAIN_ARGS --out RUN` from scratch (removing a run folder
-that a kill left without any checkpoint). It writes MARKER (JSON: attempt, pid, host, mode, step)
-once it has decided, which is how the sweep learns that the unit is running.
+UNIT_JSON is what the unit trains (`unit_record`): `{"algo", "config"}` (the config's fields),
+or for a fork `{"fork": {"from", "at", "changes"}}`. The worker dies with the process that
+started it (Linux), holds the unit's lock file while it trains (so two processes can never train
+into the same run folder), then decides, under the lock, what the attempt does: nothing if the run
+is DONE, resume RUN if it has a complete checkpoint, and otherwise start it from scratch (removing
+a run folder that a kill left without any checkpoint). It writes MARKER (JSON: attempt, pid, host,
+mode, step) once it has decided, which is how the sweep learns that the unit is running. It calls
+the algorithm's trainer as `adarl train` does, with the same exit codes (2 bad input, 3 diverged).
 """
 
 from __future__ import annotations
@@ -16,7 +18,9 @@ from __future__ import annotations
 import argparse
 import ctypes
 import fcntl
+import json
 import os
+import shlex
 import shutil
 import signal
 import socket
@@ -24,9 +28,28 @@ import sys
 import time
 from pathlib import Path
 
+from adarl.errors import RunFailed, UsageError
 from adarl.runs.layout import DONE_FILE
 
 EXIT_BUSY = 75  # another process holds the unit's lock
+
+
+def unit_record(unit, out: Path) -> dict:
+    """What `unit` (an `adarl.sweeps.spec.Unit`) trains, as the worker's --unit takes it; a
+    fork starts from its parent's run folder in the sweep folder `out`."""
+    from adarl.runs.checkpoints import config_record
+
+    if unit.fork_of:
+        fork = {"from": str(out / unit.fork_of), "at": unit.fork_step, "changes": unit.flags}
+        return {"fork": fork}
+    return {"algo": unit.algo, "config": config_record(unit.config)}
+
+
+def trainer(algo: str):
+    """The algorithm's `train(config, run_dir, resume, progress, command)`, from the registry."""
+    from adarl.algos import registry
+
+    return registry.trainer(algo)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,15 +59,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--marker", required=True)
     parser.add_argument("--attempt", type=int, required=True)
     parser.add_argument("--parent", type=int, default=None)
+    parser.add_argument("--unit", required=True, type=json.loads, help="see unit_record")
     parser.add_argument(
-        "--train-extra",
-        action="append",
-        default=[],
-        help="an `adarl train` flag for fresh and resumed attempts alike (--train-extra=--track)",
+        "--train-flags",
+        default="",
+        help="the `adarl train` flags of the same run (`Unit.train_args`), which it records",
     )
-    parser.add_argument("train_args", nargs=argparse.REMAINDER)
+    parser.add_argument("--track", action="store_true", help="as adarl train --track")
+    parser.add_argument("--wandb-project", default=None)
+    parser.add_argument("--wandb-entity", default=None)
+    parser.add_argument("--wandb-group", default=None)
     args = parser.parse_args(argv)
-    train_args = args.train_args[1:] if args.train_args[:1] == ["--"] else args.train_args
 
     if args.parent is not None and not _die_with_parent(args.parent):
         print("the sweep that started this unit is gone; not starting", flush=True)
@@ -89,15 +114,73 @@ def main(argv: list[str] | None = None) -> int:
     )
     if mode == "done":
         return 0
+    tracking = [
+        *(["--track"] if args.track else []),
+        *(
+            word
+            for name in ("wandb_project", "wandb_entity", "wandb_group")
+            if getattr(args, name) is not None
+            for word in (f"--{name.replace('_', '-')}", getattr(args, name))
+        ),
+    ]
     if mode == "resume":
-        command = ["train", "--resume", str(run_dir), "--no-progress", *args.train_extra]
-    else:
-        command = ["train", *train_args, "--out", str(run_dir), "--no-progress", *args.train_extra]
-    print("$ adarl " + " ".join(command), flush=True)
-    sys.argv = ["adarl", *command]  # what `adarl train` records as the run's command
-    from adarl.cli.main import main as adarl_main
+        words = ["--resume", str(run_dir), "--no-progress", *tracking]
+    else:  # the `adarl train` command that trains the same run, which the run records
+        words = [*shlex.split(args.train_flags), "--out", str(run_dir), "--no-progress", *tracking]
+    command = "adarl train " + shlex.join(words)
+    print("$ " + command, flush=True)
+    from adarl.runtime import configure_xla
 
-    return adarl_main(command)
+    configure_xla()
+    try:
+        _train(args, run_dir, mode == "resume", command)
+    except UsageError as exc:
+        print(f"adarl train: error: {exc}", file=sys.stderr, flush=True)
+        return 2
+    except RunFailed as exc:  # file-system error at run time (1), divergence (3)
+        print(f"adarl train: error: {exc}", file=sys.stderr, flush=True)
+        return exc.exit_code
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"adarl train: error: {where}{exc.strerror or exc}", file=sys.stderr, flush=True)
+        return 1
+    except KeyboardInterrupt:
+        print("adarl train: interrupted", file=sys.stderr, flush=True)
+        return 130
+    return 0
+
+
+def _train(args: argparse.Namespace, run_dir: Path, resume: bool, command: str) -> None:
+    """Train (or resume, or fork then train) the unit into `run_dir`, then print the summary
+    `adarl train` prints."""
+    from adarl.algos import registry
+    from adarl.evaluation.summary import training_summary
+    from adarl.runs import folder, tracking
+    from adarl.train import fork
+
+    started = time.monotonic()
+    unit = args.unit
+    if resume:
+        algo, config = folder.config_from_run(run_dir)
+    elif "fork" in unit:
+        planned = fork.prepare(unit["fork"]["from"], unit["fork"]["at"], unit["fork"]["changes"])
+        fork.write(planned, run_dir, command)
+        algo, config = folder.config_from_run(run_dir)
+        resume = True  # a written fork trains as a resumed run
+    else:
+        record = {**unit["config"], "algo": unit["algo"]}
+        algo, config = registry.config_from_record(record, "the sweep unit's config")
+    with tracking.tracked(
+        args.track,
+        run_dir,
+        config,
+        project=args.wandb_project,
+        entity=args.wandb_entity,
+        group=args.wandb_group,
+        command=command,
+    ):
+        trainer(algo)(config, run_dir, resume, False, command)
+    print(training_summary(run_dir, time.monotonic() - started), flush=True)
 
 
 def _die_with_parent(parent: int) -> bool:

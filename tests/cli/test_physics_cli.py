@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from adarl.algos import registry
 from adarl.cli.main import main
 from adarl.errors import UsageError
 from adarl.evaluation import evaluate
@@ -46,7 +47,9 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, needle, tmp_path,
 
 
 def build(argv):
-    return spec.build_config(argv)  # the config `adarl train *argv` would train
+    """The config `adarl train *argv` would train (argv: `--name value` pairs)."""
+    flags = {name[2:].replace("-", "_"): text for name, text in zip(argv[::2], argv[1::2])}
+    return registry.resolve_config(flags.pop("algo", "adarl"), flags.pop("preset", None), flags)
 
 
 def test_paper_ompo_preset_and_flags():

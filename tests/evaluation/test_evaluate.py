@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from adarl.errors import UsageError
-from adarl.evaluation import evaluate
+from adarl.evaluation import evaluate, parallel
 from adarl.evaluation.collect import final_scores
 from adarl.evaluation.export import export_policy
 from adarl.evaluation.runs import find_runs, load_run
@@ -63,16 +63,14 @@ def test_bad_episode_counts():
     with pytest.raises(UsageError, match="--episodes must be ≥ 1"):
         evaluate.EvalSpec.from_options(episodes=0)
     with pytest.raises(UsageError, match="--workers"):
-        evaluate.execute([], workers=0)
+        parallel.run_units([], workers=0)
 
 
 def test_same_seed_same_returns_with_one_or_two_workers(run):
     s = spec(sweeps=["torso_length=0.3,0.5"], holds=["foot_length=0.39"])
     (a,) = evaluate.evaluate_runs([run], s, workers=1)
     (b,) = evaluate.evaluate_runs([run], s, workers=1)
-    # spawn, as `evaluate.start_method` picks once JAX is loaded (the test process has JAX's
-    # threads, which a fork would copy half-way)
-    (c,) = evaluate.evaluate_runs([run], s, workers=2, method="spawn")
+    (c,) = evaluate.evaluate_runs([run], s, workers=2)  # two spawned processes
     pd.testing.assert_frame_equal(a, b)
     pd.testing.assert_frame_equal(a, c)
     assert len(a) == 2 * 2 * 2  # points × seeds × episodes

@@ -1,5 +1,6 @@
-"""The baselines' protocol in the report: Parseval's best coefficient per task (as the paper
-selects it) with every coefficient in a supplementary table, and RNAC's final or best checkpoint."""
+"""The baselines' protocol in the report: every best-of family at its best value per task
+(Parseval's coefficient, as the paper selects it) with every value in a supplementary table, and
+RNAC's final or best checkpoint."""
 
 import json
 
@@ -16,7 +17,7 @@ QUALITY = {
     "hopper": {1e-3: 0.6, 1e-4: 0.9, 1e-5: 0.7},
     "walker2d": {1e-3: 0.9, 1e-4: 0.5, 1e-5: 0.6},
 }
-PHRASE = "best of 3 coefficients (selected on the reported metric, as in the paper)"
+PHRASE = "best of 3 values of parseval_coef (selected on the reported metric, as in the paper)"
 
 
 @pytest.fixture
@@ -49,9 +50,11 @@ def _scores(runs):
 def test_selection_picks_the_best_coefficient_per_task(sweep):
     runs = find_runs([sweep])
     scores = _scores(runs)
-    chosen = selection.select_parseval(runs, scores)
-    assert chosen.labels == {t: "sac-parseval (best of 3)" for t in QUALITY}
-    cells = chosen.cells.set_index(["task", "parseval_coef"])
+    chosen = selection.select_best_of(runs, scores)
+    (family,) = chosen.families
+    assert (family.algo, family.field) == ("sac-parseval", "parseval_coef")
+    assert family.labels == {t: "sac-parseval (best of 3)" for t in QUALITY}
+    cells = family.cells.set_index(["task", "parseval_coef"])
     assert len(cells) == 6 and set(cells["seeds"]) == {3}
     for task, by_coef in QUALITY.items():
         best = max(by_coef, key=by_coef.get)
@@ -70,14 +73,14 @@ def test_selection_picks_the_best_coefficient_per_task(sweep):
 
 def test_ties_keep_the_larger_coefficient_and_one_coefficient_selects_nothing(tmp_path):
     rows = pd.DataFrame(
-        {"task": "hopper", "coef": [1e-3, 1e-4, 1e-4], "seed": [0, 0, 1], "score": [5.0, 4, 6]}
+        {"task": "hopper", "value": [1e-3, 1e-4, 1e-4], "seed": [0, 0, 1], "score": [5.0, 4, 6]}
     )
-    cells = selection.coefficient_cells(rows)
+    cells = selection.value_cells(rows, "parseval_coef")
     assert cells.loc[cells["selected"], "parseval_coef"].tolist() == [1e-3]
     write_run(tmp_path, "p", algo="sac-parseval", extra_config={"parseval_coef": 1e-4})
     runs = find_runs([tmp_path])
-    chosen = selection.select_parseval(runs, _scores(runs))
-    assert chosen.labels == {} and chosen.cells.empty
+    chosen = selection.select_best_of(runs, _scores(runs))
+    assert chosen.labels == [] and chosen.families == []
     assert set(chosen.scores["method"]) == {"sac-parseval"}
 
 
@@ -90,8 +93,8 @@ def test_runs_that_differ_in_more_than_the_coefficient_are_not_selected(tmp_path
             extra_config={"parseval_coef": coef, "hidden": hidden},
         )
     runs = find_runs([tmp_path])
-    chosen = selection.select_parseval(runs, _scores(runs))
-    assert chosen.labels == {} and "differ in hidden" in chosen.notes[0]
+    chosen = selection.select_best_of(runs, _scores(runs))
+    assert chosen.labels == [] and "differ in hidden" in chosen.notes[0]
     assert len(set(chosen.scores["method"])) == 2
 
 
@@ -101,18 +104,18 @@ def test_report_labels_the_selection_and_shows_every_coefficient(sweep, tmp_path
     md = (out / "tables" / "table1.md").read_text()
     assert md.splitlines()[0] == "| task | sac | sac-parseval (best of 3) |"
     assert f"sac-parseval (best of 3): {PHRASE}" in md
-    assert "chosen coefficient: hopper 1e-4, walker2d 1e-3" in md
-    assert PHRASE in (out / "tables" / "table1.tex").read_text()
+    assert "chosen parseval_coef: hopper 1e-4, walker2d 1e-3" in md
+    assert PHRASE.replace("_", r"\_") in (out / "tables" / "table1.tex").read_text()
     index = (out / "index.md").read_text()
-    assert PHRASE in index and "## Supplementary: Parseval coefficients" in index
-    table = (out / "tables" / "parseval.md").read_text().splitlines()
+    assert PHRASE in index and "## Supplementary: sac-parseval at each parseval_coef" in index
+    table = (out / "tables" / "best-of-sac-parseval.md").read_text().splitlines()
     assert table[0] == (
         "| task | parseval_coef=1e-3 | parseval_coef=1e-4 | parseval_coef=1e-5 | selected |"
     )
     hopper = table[2].split("|")
     assert hopper[1].strip() == "hopper" and hopper[3].strip().startswith("**")
     assert hopper[5].strip() == "1e-4"
-    cells = pd.read_csv(out / "tables" / "parseval.csv")
+    cells = pd.read_csv(out / "tables" / "best-of-sac-parseval.csv")
     assert len(cells) == 6 and cells["selected"].sum() == 2
     aggregate = pd.read_csv(out / "tables" / "aggregate.csv")
     assert set(aggregate["method"]) == {"sac", "sac-parseval (best of 3)"}
@@ -140,7 +143,7 @@ def test_rnac_final_checkpoint_by_default_and_best_on_request(tmp_path, no_figur
     md = (final / "tables" / "table1.md").read_text()
     assert md.splitlines()[0] == "| task | sac | rnac |"
     assert "rnac: the final checkpoint" in md
-    assert main([*argv, "--out", str(best), "--rnac-checkpoint", "best"]) == 0
+    assert main([*argv, "--out", str(best), "--best-checkpoint", "best"]) == 0
     md = (best / "tables" / "table1.md").read_text()
     assert md.splitlines()[0] == "| task | sac | rnac (best checkpoint) |"
     assert "rnac (best checkpoint): each seed's best checkpoint" in md
@@ -149,7 +152,7 @@ def test_rnac_final_checkpoint_by_default_and_best_on_request(tmp_path, no_figur
     source = runs.loc[runs["method"] == "rnac (best checkpoint)", "score from"].item()
     assert source == "best checkpoint by evaluation (steps seed 0: 4000, seed 1: 6000)"
     assert "hopper rnac (best checkpoint): the best checkpoint's evaluation return" in md
-    assert "--rnac-checkpoint best" in (best / "index.md").read_text()
+    assert "--best-checkpoint best" in (best / "index.md").read_text()
     # without a best record (an older run): the best nominal evaluation in eval.csv
     (next((run / "checkpoints").iterdir()) / "meta.json").write_text('{"step": 10000}')
     scores, note = collect.best_scores(find_runs([run])[0])
@@ -158,7 +161,29 @@ def test_rnac_final_checkpoint_by_default_and_best_on_request(tmp_path, no_figur
     assert note.startswith("best nominal evaluation in eval.csv")
     # a bad value: one line, exit 2, nothing written
     capsys.readouterr()
-    assert main([*argv, "--out", str(tmp_path / "bad"), "--rnac-checkpoint", "top"]) == 2
+    assert main([*argv, "--out", str(tmp_path / "bad"), "--best-checkpoint", "top"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "unknown --rnac-checkpoint 'top'; allowed: final, best" in err
+    assert err.count("\n") == 1 and "unknown --best-checkpoint 'top'; allowed: final, best" in err
     assert not (tmp_path / "bad").exists()
+
+
+def test_every_best_of_family_is_selected(sweep, monkeypatch):
+    families = {"sac-parseval": "parseval_coef", "sac-sparse": "sparse_width"}
+    monkeypatch.setattr(selection, "best_of_families", lambda: families)
+    for width, quality in ((256, 0.4), (1024, 0.7)):
+        write_run(
+            sweep / "hopper",
+            f"sparse-{width}",
+            algo="sac-sparse",
+            quality=quality,
+            extra_config={"sparse_width": width},
+        )
+    runs = find_runs([sweep])
+    chosen = selection.select_best_of(runs, _scores(runs))
+    assert [(f.algo, f.field) for f in chosen.families] == list(families.items())
+    sparse = chosen.families[1]
+    assert sparse.labels == {"hopper": "sac-sparse (best of 2)"}
+    assert sparse.cells.loc[sparse.cells["selected"], "sparse_width"].tolist() == [1024]
+    kept = chosen.scores[chosen.scores["method"] == "sac-sparse (best of 2)"]
+    assert len(kept) == 3 and all("sparse-1024" in run for run in kept["run"])
+    assert "sac-parseval (best of 3)" in set(chosen.scores["method"])

@@ -163,12 +163,16 @@ def test_a_sweep_unit_passes_the_tracking_flags_to_every_attempt(tmp_path, monke
         for name in ("meta.json", "arrays.npz"):
             (run_dir / "checkpoints" / "step_000000000500" / name).write_text("{}")
     seen = []
-    monkeypatch.setattr("adarl.cli.main.main", lambda argv: seen.append(argv) or 0)
+    monkeypatch.setattr(worker, "_train", lambda *args: seen.append(args))
     state = ["--lock", str(tmp_path / "l"), "--marker", str(tmp_path / "m"), "--attempt", "1"]
-    extra = ["--train-extra=--track", "--train-extra=--wandb-group", "--train-extra=smoke"]
-    assert worker.main(["--run-dir", str(run_dir), *state, *extra, "--", *TINY]) == 0
-    assert seen[0][-3:] == ["--track", "--wandb-group", "smoke"]
-    assert ("--resume" in seen[0]) == resume
+    unit = spec.load("smoke").units[0]
+    what = [f"--unit={json.dumps(worker.unit_record(unit, tmp_path))}", "--train-flags=--algo sac"]
+    extra = ["--track", "--wandb-group", "smoke"]
+    assert worker.main(["--run-dir", str(run_dir), *state, *extra, *what]) == 0
+    args, _, resumed, command = seen[0]
+    assert args.track and args.wandb_group == "smoke" and resumed == resume
+    assert command.endswith("--no-progress --track --wandb-group smoke")
+    assert ("--resume" in command) == resume
 
 
 def test_the_sweep_hands_the_flags_to_its_units(tmp_path, monkeypatch, capsys):
@@ -189,4 +193,4 @@ def test_the_sweep_hands_the_flags_to_its_units(tmp_path, monkeypatch, capsys):
         spec.load("smoke").units[0], 1
     )
     assert job["env"]["WANDB_MODE"] == "offline" and "XLA_FLAGS" in job["env"]
-    assert "--train-extra=--track" in job["worker_args"]
+    assert "--track" in job["worker_args"]

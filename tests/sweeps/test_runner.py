@@ -135,9 +135,11 @@ def test_a_fork_unit_starts_once_its_parent_has_written_the_fork_point(tmp_path,
     code, units = _fork_sweep(tmp_path, backend)
     assert code == 0 and _uids(backend) == ["hopper/a/seeds-0-1", "hopper/c/seeds-0-1"]
     args = backend.jobs[1]["worker_args"]
-    train = args[args.index("--") + 1 :]
+    (record,) = [json.loads(a.removeprefix("--unit=")) for a in args if a.startswith("--unit=")]
     parent = str((tmp_path / "out").resolve() / "hopper/a/seeds-0-1")
-    assert train == ["--fork", parent, "--at", "950", "--apply-cuts", "false"]
+    assert record == {"fork": {"from": parent, "at": 950, "changes": {"apply_cuts": "false"}}}
+    (flags,) = [a.removeprefix("--train-flags=") for a in args if a.startswith("--train-flags=")]
+    assert flags == f"--fork {parent} --at 950 --apply-cuts false"
     assert units["hopper/c/seeds-0-1"]["status"] == "done"
 
 

@@ -63,7 +63,7 @@ def test_overrides_apply_where_the_field_exists_most_specific_last():
 def test_grid_expands_into_labelled_entries():
     sweep = _parse(algos=[{"algo": "sac-fixed-rank", "grid": {"rank": [1, 7]}}])
     assert [u.label for u in sweep.units] == ["sac-fixed-rank_rank-1", "sac-fixed-rank_rank-7"]
-    assert spec.build_config(list(sweep.units[1].train_args)).rank == 7
+    assert sweep.units[1].config.rank == 7
 
 
 @pytest.mark.parametrize("doc, message", [

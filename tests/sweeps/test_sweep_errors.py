@@ -117,10 +117,11 @@ def test_a_folder_in_use_by_another_sweep_is_refused(tmp_path, capsys, write_spe
 
 def test_a_run_folder_with_other_settings_is_refused(tmp_path, capsys, write_spec):
     from adarl import __version__
+    from adarl.algos import registry
 
     spec_file = write_spec(tmp_path / "s.yaml")
     unit = spec.load(str(spec_file)).units[0]
-    other = spec.build_config([*unit.train_args, "--total-steps", "2000"])
+    other = registry.resolve_config(unit.algo, unit.preset, {**unit.flags, "total_steps": "2000"})
     run_dir = tmp_path / "out" / unit.id
     run_dir.mkdir(parents=True)
     extra = {"format_version": RUN_FORMAT_VERSION, "adarl_version": __version__}

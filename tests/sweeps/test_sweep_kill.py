@@ -99,9 +99,7 @@ def test_a_unit_held_by_another_process_is_not_trained_twice(tmp_path):
                 str(tmp_path / "m.json"),
                 "--attempt",
                 "1",
-                "--",
-                "--algo",
-                "sac",
+                '--unit={"algo": "sac", "config": {}}',
             ]
         )
     assert code == worker.EXIT_BUSY
