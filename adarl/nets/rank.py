@@ -14,8 +14,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-RANK_RULES = ("cumulative", "ratio", "energy", "energy-squared")
-LR_SCHEDULES = ("envelope", "restart")
+from adarl.nets.choices import RANK_RULES
 
 
 def select_rank_cumulative(sigma: jnp.ndarray, beta: float) -> jnp.ndarray:

@@ -25,6 +25,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from adarl.algos.sac_config import SAC_FAMILY, SACConfig
 from adarl.errors import UsageError
 from adarl.train import io
 from adarl.train import run_folder as rf
@@ -55,7 +56,6 @@ FORKABLE = (
     "on_divergence",
 )
 FIRST_TRUNCATION = "first-truncation"  # --at: the parent's first truncation step
-SAC_TRAINER = "adarl.train.sac_loop:train"
 # AdaRL and its control: `apply_cuts` decides which of the two a fork is
 CONTROL_PAIR = {True: "adarl", False: "adarl-control"}
 
@@ -68,21 +68,19 @@ class Fork:
     step: int
     checkpoint: Path  # the parent's checkpoint folder it starts from
     algo: str
-    config: object  # the child's SACConfig
+    config: SACConfig  # the child's
     record: dict  # config.yaml's `fork`
 
 
 def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) -> Fork:
     """Check a fork of run `parent` at `at` (a step, or `first-truncation`) with `changes`
     (field -> value, or text as typed) without writing anything; one-line UsageErrors."""
-    from adarl.algos import registry
 
     parent = Path(parent).resolve()
     algo, before = rf.config_from_run(parent)
-    if registry.get(algo).trainer != SAC_TRAINER:
-        family = [a.name for a in registry.ALGORITHMS.values() if a.trainer == SAC_TRAINER]
+    if not isinstance(before, SACConfig):
         raise UsageError(
-            f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(family)})"
+            f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(SAC_FAMILY)})"
         )
     config, changed = forked_config(algo, before, changes)
     step = fork_step(before, at)

@@ -22,7 +22,6 @@ import numpy as np
 from adarl.algos.rnac import (
     METRICS,
     TRAIN_COLUMNS,
-    RNACConfig,
     clip,
     critic_value,
     draw_double_sampling,
@@ -35,6 +34,7 @@ from adarl.algos.rnac import (
     select_candidate,
     welford,
 )
+from adarl.algos.rnac_config import RNACConfig
 from adarl.errors import UsageError
 from adarl.train import io
 from adarl.train import run_folder as rf
@@ -273,7 +273,7 @@ def _train(config: RNACConfig, run_dir: Path, resume: bool, progress: bool, comm
     # --- environments, one per seed, and the double-sampling simulators
     seeds = [int(s) for s in config.seeds]
     n_seeds, t_roll = len(seeds), config.rollout_steps
-    options = envs.env_options(config)  # physics and model version
+    options = config.env_options()
     env_list = [envs.make(config.task, config.dynamics, s, **options) for s in seeds]
     low = np.asarray(env_list[0].action_space.low, np.float64)
     high = np.asarray(env_list[0].action_space.high, np.float64)

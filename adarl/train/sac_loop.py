@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from adarl.algos import replay, sac
+from adarl.algos import replay, sac, sac_config
 from adarl.errors import UsageError
 from adarl.train import io
 from adarl.train import run_folder as rf
@@ -141,7 +141,7 @@ class Lane:
 class Run:
     """Host-side state of a run: environments, lanes of seeds, counters, logs; and the loop."""
 
-    def __init__(self, config: sac.SACConfig, run_dir: Path, progress: bool = True):
+    def __init__(self, config: sac_config.SACConfig, run_dir: Path, progress: bool = True):
         from adarl.envs import make
 
         self.config = config.validate()
@@ -154,9 +154,7 @@ class Run:
                 config.task,
                 dynamics=config.dynamics,
                 seed=s,
-                max_episode_steps=config.max_episode_steps,
-                physics=config.physics,
-                version=config.model_version,
+                **config.env_options(),
             )
             for s in self.seeds
         ]
@@ -177,9 +175,7 @@ class Run:
                 config.task,
                 dynamics=label,
                 seed=0,
-                max_episode_steps=1,
-                physics=config.physics,
-                version=config.model_version,
+                **{**config.env_options(), "max_episode_steps": 1},
             ).close()
         self.watch = io.DivergenceWatch(run_dir, config.on_divergence)
 
@@ -565,9 +561,7 @@ class Run:
                     label,
                     c.eval_episodes,
                     seed=1_000_000 + self.seeds[i],
-                    max_episode_steps=c.max_episode_steps,
-                    physics=c.physics,
-                    version=c.model_version,
+                    **c.env_options(),
                 )
                 self.logs[rf.EVAL_CSV].write(rf.eval_rows(self.step, self.seeds[i], label, rows))
                 mean_return = float(np.mean([r["return"] for r in rows]))
@@ -744,7 +738,7 @@ def _progress(total: int, start: int, enabled: bool):
 
 
 def train(
-    config: sac.SACConfig,
+    config: sac_config.SACConfig,
     run_dir: str | Path,
     resume: bool = False,
     progress: bool = True,

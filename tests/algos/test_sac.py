@@ -8,7 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from adarl.algos import SAC_FAMILY, replay, sac
+from adarl.algos import replay, sac, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.nets import mlp, rank
 from adarl.nets.regularisers import parseval_penalty
 
@@ -16,7 +17,7 @@ OBS, ACT = 5, 2
 
 
 def make(algo="adarl", **overrides):
-    config = sac.SACConfig(
+    config = sac_config.SACConfig(
         **{
             **SAC_FAMILY[algo],
             "algo": algo,
@@ -306,7 +307,7 @@ def test_bad_config_is_a_one_line_error(bad, message):
     from adarl.errors import UsageError
 
     with pytest.raises(UsageError, match=message) as err:
-        sac.SACConfig(**bad).validate()
+        sac_config.SACConfig(**bad).validate()
     assert "\n" not in str(err.value)
 
 

@@ -240,7 +240,8 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
     """A trainer that raises after taking the lock (here: right after config.yaml) has released
     it by the time the exception reaches the caller, even while the caller keeps the exception
     (and so the trainer's frames) alive, as a sweep worker or a test does."""
-    from adarl.algos import SAC_FAMILY, rnac, sac
+    from adarl.algos import rnac_config, sac_config
+    from adarl.algos.sac_config import SAC_FAMILY
     from adarl.train import rnac_loop, sac_loop
 
     def crash(run_dir):
@@ -250,10 +251,10 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
     monkeypatch.setattr(io, "write_environment", crash)
     run_dir = tmp_path / "run"
     if algo == "sac":
-        values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
-        trainer, config = sac_loop.train, sac.SACConfig(**values)
+        values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+        trainer, config = sac_loop.train, sac_config.SACConfig(**values)
     else:
-        trainer, config = rnac_loop.train, rnac.RNACConfig(**rnac.PRESETS["smoke"])
+        trainer, config = rnac_loop.train, rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"])
     with pytest.raises(Crash) as info:
         trainer(config, run_dir, progress=False)
     assert info.traceback  # kept

@@ -9,7 +9,8 @@ from types import SimpleNamespace
 import pytest
 
 from adarl import __version__
-from adarl.algos import SAC_FAMILY, rnac, sac
+from adarl.algos import rnac_config, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.evaluation import report
 from adarl.train import provenance, rnac_loop, sac_loop
 
@@ -113,9 +114,9 @@ def _stop(*args, **kwargs):
 
 def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
     monkeypatch.setattr(sac_loop.Run, "fresh", _stop)  # stop right after the run is created
-    values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
     with pytest.raises(Stop):
-        sac_loop.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
+        sac_loop.train(sac_config.SACConfig(**values), tmp_path / "run", progress=False)
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["jax"] == metadata.version("jax")
 
@@ -123,6 +124,6 @@ def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
 def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
     monkeypatch.setattr(rnac_loop, "init_states", _stop)  # stop before any JAX work
     with pytest.raises(Stop):
-        rnac_loop.train(rnac.RNACConfig(**rnac.PRESETS["smoke"]), tmp_path / "run", progress=False)
+        rnac_loop.train(rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"]), tmp_path / "run", progress=False)
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["mujoco"] == metadata.version("mujoco")

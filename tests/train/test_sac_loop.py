@@ -12,15 +12,16 @@ import jax
 import numpy as np
 import pytest
 
-from adarl.algos import SAC_FAMILY, sac
+from adarl.algos import sac, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.train import io, sac_loop
 
 
 def smoke_config(algo="adarl", **overrides):
-    values = {**SAC_FAMILY[algo], **sac.PRESETS["smoke"], "algo": algo, "task": "hopper"}
+    values = {**SAC_FAMILY[algo], **sac_config.PRESETS["smoke"], "algo": algo, "task": "hopper"}
     values.update(overrides)
-    return sac.SACConfig(**values)
+    return sac_config.SACConfig(**values)
 
 
 def csv_rows(run_dir, name, drop=("steps_per_s",)):
@@ -36,7 +37,7 @@ def final_arrays(run_dir):
 
 def test_pendulum_learns_for_every_seed(tmp_path):
     """Learning check on a small task: every seed of a vmapped run beats −400 within 10k steps."""
-    config = sac.SACConfig(
+    config = sac_config.SACConfig(
         algo="sac",
         task="gym:Pendulum-v1",
         dynamics="default",
