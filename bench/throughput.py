@@ -50,7 +50,9 @@ def paper_config(algo: str, seeds: int, **overrides) -> sac_config.SACConfig:
     return sac_config.SACConfig(**values).validate()
 
 
-def training_rate(config: sac_config.SACConfig, steps: int, warmup: int) -> tuple[float, sac_loop.Run]:
+def training_rate(
+    config: sac_config.SACConfig, steps: int, warmup: int
+) -> tuple[float, sac_loop.Run]:
     """Environment steps per second (per process) of the training loop, after `warmup` steps."""
     tmp = tempfile.mkdtemp(prefix="adarl-bench-")
     run = sac_loop.Run(config, tmp, progress=False)

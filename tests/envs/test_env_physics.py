@@ -276,7 +276,9 @@ def test_tasks_step_reset_and_change_dynamics(task, version):
     obs_dim = {"v5": get_task(task).obs_dim, "v4": get_task(task).v4_obs_dim}[version]
     assert get_task(task, version).obs_dim == obs_dim
     for physics in PHYSICS:
-        env = make(task, "paper", seed=0, physics=physics, model_version=version, max_episode_steps=5)
+        env = make(
+            task, "paper", seed=0, physics=physics, model_version=version, max_episode_steps=5
+        )
         assert env.spec.id == f"{get_task(task).gym_id[:-3]}-{version}"
         assert env.observation_space.shape == (obs_dim,)
         seen, models = [], []

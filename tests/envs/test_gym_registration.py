@@ -30,7 +30,9 @@ def test_ids_registered():
 @pytest.mark.parametrize("env_id", sorted(IDS))
 def test_make_takes_make_options(env_id):
     task = IDS[env_id]
-    env = gymnasium.make(env_id, dynamics="ompo", physics="ompo", model_version="v4", mass_scale=1.1)
+    env = gymnasium.make(
+        env_id, dynamics="ompo", physics="ompo", model_version="v4", mass_scale=1.1
+    )
     assert isinstance(env.unwrapped, TaskEnv)
     obs, info = env.reset(seed=0)
     assert obs.shape == (get_task(task, "v4").obs_dim,)

@@ -251,7 +251,12 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
     monkeypatch.setattr(io, "write_environment", crash)
     run_dir = tmp_path / "run"
     if algo == "sac":
-        values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+        values = {
+            **SAC_FAMILY["sac"],
+            **sac_config.PRESETS["smoke"],
+            "algo": "sac",
+            "task": "hopper",
+        }
         trainer, config = sac_loop.train, sac_config.SACConfig(**values)
     else:
         trainer, config = rnac_loop.train, rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"])

@@ -124,6 +124,8 @@ def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
 def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
     monkeypatch.setattr(rnac_loop, "init_states", _stop)  # stop before any JAX work
     with pytest.raises(Stop):
-        rnac_loop.train(rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"]), tmp_path / "run", progress=False)
+        rnac_loop.train(
+            rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"]), tmp_path / "run", progress=False
+        )
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["mujoco"] == metadata.version("mujoco")

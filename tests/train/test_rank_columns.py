@@ -16,7 +16,12 @@ from adarl.train import io, sac_loop
 
 
 def smoke_config(**overrides):
-    values = {**SAC_FAMILY["adarl"], **sac_config.PRESETS["smoke"], "algo": "adarl", "task": "hopper"}
+    values = {
+        **SAC_FAMILY["adarl"],
+        **sac_config.PRESETS["smoke"],
+        "algo": "adarl",
+        "task": "hopper",
+    }
     return sac_config.SACConfig(**{**values, **overrides})
 
 

@@ -49,7 +49,11 @@ def test_state_copy_round_trip(task):
 def _config(**kw) -> rnac_config.RNACConfig:
     # the first checkpoint (640) falls inside a rollout (256 steps): its buffer is checkpointed
     base = dict(
-        rnac_config.PRESETS["smoke"], total_steps=1024, checkpoint_every=640, eval_every=512, log_every=256
+        rnac_config.PRESETS["smoke"],
+        total_steps=1024,
+        checkpoint_every=640,
+        eval_every=512,
+        log_every=256,
     )
     return rnac_config.RNACConfig(**{**base, **kw})
 
