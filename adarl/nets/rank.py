@@ -122,23 +122,6 @@ def reparameterise(u, s, vt, new_rank, dtype=jnp.float32):
     return u * root[None, :], root[:, None] * vt, mask
 
 
-def truncate_bottleneck(w1, w2, mask, beta: float, rule: str = "cumulative"):
-    """One rank-adaptation step on a padded bottleneck (paper appendix, "Basic Settings").
-
-    Takes the SVD W1·W2 = U Σ Vᵀ, picks r_new = max(1, min(r_old, r̂)) and re-parameterises
-    W1 = U[:, :r] √Σ_r, W2 = √Σ_r V[:r, :]ᵀ, so W1·W2 becomes the best rank-r approximation of
-    the old product (Eckart–Young). Components past r are set to exactly zero.
-
-    Returns `(w1_new, w2_new, mask_new, sigma, proposed_rank)`; `sigma` is the spectrum cut or
-    padded to the bottleneck width.
-    """
-    u, s, vt = spectrum(w1, w2, mask)
-    old_rank = jnp.sum(mask).astype(jnp.int32)
-    proposed = select_rank(s, beta, rule)
-    w1_new, w2_new, new_mask = reparameterise(u, s, vt, next_rank(old_rank, proposed), w1.dtype)
-    return w1_new, w2_new, new_mask, s, proposed
-
-
 def relative_error(approx: jnp.ndarray, reference: jnp.ndarray) -> jnp.ndarray:
     """‖approx − reference‖ / ‖reference‖ over all entries (0 when both are zero)."""
     num = jnp.linalg.norm((approx - reference).ravel())
