@@ -14,8 +14,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from adarl.algos import registry
 from adarl.errors import Diverged, RunFailed, UsageError
 from adarl.train import io
+
+# one algorithm per config class, so per training loop
+ONE_PER_TRAINER = [
+    next(a for a in registry.ALGOS if registry.get(a).config_class is cls)
+    for cls in registry.config_classes()
+]
 
 PROBE = """
 import importlib.util, sys, tempfile
@@ -235,14 +242,12 @@ def test_run_lock_is_released_when_its_block_ends_while_the_process_lives(tmp_pa
         again.acquire(new=False)
 
 
-@pytest.mark.parametrize("algo", ["sac", "rnac"])
+@pytest.mark.parametrize("algo", ONE_PER_TRAINER)
 def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, monkeypatch):
     """A trainer that raises after taking the lock (here: right after config.yaml) has released
     it by the time the exception reaches the caller, even while the caller keeps the exception
     (and so the trainer's frames) alive, as a sweep worker or a test does."""
-    from adarl.algos import rnac_config, sac_config
-    from adarl.algos.sac_config import SAC_FAMILY
-    from adarl.train import rnac_loop, sac_loop
+    from adarl.train.trainers import trainer
 
     def crash(run_dir):
         assert io.lock_holder(run_dir) == str(os.getpid())  # taken by then
@@ -250,18 +255,10 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
 
     monkeypatch.setattr(io, "write_environment", crash)
     run_dir = tmp_path / "run"
-    if algo == "sac":
-        values = {
-            **SAC_FAMILY["sac"],
-            **sac_config.PRESETS["smoke"],
-            "algo": "sac",
-            "task": "hopper",
-        }
-        trainer, config = sac_loop.train, sac_config.SACConfig(**values)
-    else:
-        trainer, config = rnac_loop.train, rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"])
+    config = registry.resolve_config(algo, "smoke", {"task": "hopper"})
+    train = trainer(algo)
     with pytest.raises(Crash) as info:
-        trainer(config, run_dir, progress=False)
+        train(config, run_dir, progress=False)
     assert info.traceback  # kept
     assert io.lock_holder(run_dir) is None
 
