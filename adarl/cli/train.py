@@ -13,8 +13,6 @@ from adarl.errors import UsageError
 
 HELP = "train an algorithm (AdaRL, SAC baselines, RNAC) on a task, or resume a run"
 REPORT_PRESETS = ("quickstart",)  # presets whose runs end with a report in RUN_DIR/report
-
-
 DEFAULT_ALGO = "adarl"
 
 

@@ -176,9 +176,10 @@ def forked_config(algo: str, parent, changes: Mapping[str, object]):
 
 
 def check_forkable(parent, child) -> dict:
-    """The fields in which config `child` differs from `parent` ({from, to}), or a one-line
-    UsageError naming the first one a fork cannot change (the sweeps check their fork units
-    with it)."""
+    """The fields in which config `child` differs from `parent` ({from, to}), in `FORKABLE`'s
+    order (a sweep's fork arguments follow it, whatever the config class's field order), or a
+    one-line UsageError naming the first one a fork cannot change (the sweeps check their fork
+    units with it)."""
     then, now = io.config_record(parent), io.config_record(child)
     changed = {k: {"from": then.get(k), "to": now[k]} for k in now if then.get(k) != now[k]}
     if "algo" in changed and set(CONTROL_PAIR.values()) != {then["algo"], now["algo"]}:
@@ -192,7 +193,8 @@ def check_forkable(parent, child) -> dict:
                 f"{name} differs ({then.get(name)!r} in the parent, {now[name]!r} in the fork) "
                 "but cannot change at a fork"
             )
-    return changed
+    order = (*FORKABLE, "algo")
+    return dict(sorted(changed.items(), key=lambda item: order.index(item[0])))
 
 
 def write(fork: Fork, out: Path, command: str) -> None:

@@ -391,9 +391,9 @@ def test_make_vec_passes_physics_and_version():
 
 
 def test_env_options_from_configs():
-    assert env_options({"task": "hopper"}) == {"physics": "consistent", "version": "v5"}
+    assert env_options({"task": "hopper"}) == {"physics": "consistent", "model_version": "v5"}
     nested = {"run": {"physics": "ompo"}, "env": {"model_version": "v4"}}
-    assert env_options(nested) == {"physics": "ompo", "version": "v4"}
+    assert env_options(nested) == {"physics": "ompo", "model_version": "v4"}
 
 
 # ------------------------------------------------------------------ bad input
@@ -401,8 +401,8 @@ def test_env_options_from_configs():
     "kwargs, needle",
     [
         ({"physics": "newton"}, "unknown physics 'newton'; allowed: consistent, ompo"),
-        ({"version": "v3"}, "unknown model version 'v3'; allowed: v5, v4"),
-        ({"version": "V4"}, "unknown model version 'V4'"),
+        ({"model_version": "v3"}, "unknown model version 'v3'; allowed: v5, v4"),
+        ({"model_version": "V4"}, "unknown model version 'V4'"),
     ],
 )
 def test_bad_physics_or_version(kwargs, needle):
@@ -412,7 +412,7 @@ def test_bad_physics_or_version(kwargs, needle):
 
 
 def test_gym_tasks_have_no_physics_or_versions():
-    for kwargs in ({"physics": "ompo"}, {"version": "v4"}):
+    for kwargs in ({"physics": "ompo"}, {"model_version": "v4"}):
         with pytest.raises(UsageError, match="does not exist; allowed: physics 'consistent'"):
             make("gym:Pendulum-v1", "default", **kwargs)
     make("gym:Pendulum-v1", "default", physics="consistent", model_version="v5").close()
