@@ -207,7 +207,7 @@ def config_from_record(values: dict, where: str):
     if unknown:  # a typo or a hand edit: dropping it silently would change the run
         raise UsageError(
             f"{where} has unknown field {unknown[0]!r}; allowed: the config fields of "
-            f"--algo {algo} (adarl train --help)"
+            f"--algo {algo} (adarl train --algo {algo} --help)"
         )
     kept = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in names}
     for name, value in entry.legacy_fields.items():
