@@ -10,6 +10,7 @@ import pytest
 from adarl.algos import registry
 from adarl.train import run_folder
 from adarl.train.io import read_csv
+from adarl.train.trainers import trainer
 
 # Each algorithm's `smoke` preset with the budgets of its own tests (tests/algos/test_sac_family.py,
 # tests/algos/test_rnac.py); the crash comes before the second checkpoint, with CSV rows written
@@ -64,7 +65,7 @@ def _final(run):
 @pytest.mark.parametrize("algo", registry.ALGOS)
 def test_killed_and_resumed_run_equals_an_uninterrupted_one(algo, tmp_path, monkeypatch):
     config = registry.resolve_config(algo, "smoke", {"task": "hopper", **BUDGETS[algo]})
-    train = registry.trainer(algo)
+    train = trainer(algo)
     train(config, tmp_path / "full", progress=False)
 
     saved = []
