@@ -12,10 +12,11 @@ Follows the public PPO-based trainer (github.com/tliu1997/RNAC, `train_rnac.py`,
 * ``ipm`` (integral probability metric): every TD residual subtracts `weight_reg`·‖θ_V‖₂, the
   norm of all critic weights and all biases but the last.
 
-Reads top to bottom: networks; the maths as pure functions (GAE, clipped
-objective, IPM norm, worst-case selection); the jitted update (epochs × minibatches in
-`lax.scan`, vmapped over seeds); running normalisers; the policy export. The config and presets are `adarl.algos.rnac_config`. The training loop (the
-double-sampling simulator, logs, evaluation, checkpoints) is `adarl.train.rnac_loop`.
+Reads top to bottom: networks; the maths as pure functions (GAE, clipped objective, IPM norm,
+worst-case selection); the jitted update (epochs × minibatches in `lax.scan`, vmapped over
+seeds); running normalisers; the policy export. The config and presets are
+`adarl.algos.rnac_config`; the training loop (the double-sampling simulator, logs, evaluation,
+checkpoints) is `adarl.train.rnac_loop`.
 Deviations from the original are listed in docs/rnac.md.
 """
 

@@ -15,7 +15,8 @@ UNCERTAINTY_SETS = ("ds", "ipm")
 
 @dataclass(frozen=True)
 class RNACConfig(RunConfig):
-    """Every hyperparameter of an RNAC run. Defaults: the public RNAC code's settings."""
+    """An RNAC run: `RunConfig`'s fields (the budget, evaluation and logging defaults of the
+    public RNAC code) plus every hyperparameter of RNAC. Defaults: that code's settings."""
 
     algo: str = "rnac"  # the algorithm (adarl train --algo)
     total_steps: int = 3_000_000  # environment steps per seed

@@ -42,7 +42,8 @@ ADARL_TASK_DEFAULTS: dict[str, dict] = {
 
 @dataclass(frozen=True)
 class SACConfig(RunConfig):
-    """Every hyperparameter of a SAC-family run. Defaults: the AdaRL paper's setting."""
+    """A SAC-family run: `RunConfig`'s fields plus every hyperparameter of SAC and AdaRL.
+    Defaults: the AdaRL paper's setting."""
 
     algo: str = "adarl"  # the algorithm (adarl train --algo)
     # 0: every seed is its own lane (its own XLA computations and bottleneck widths), so a seed's
