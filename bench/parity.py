@@ -120,9 +120,10 @@ DIFFERENCES = [
 # ============================================================================ configuration
 def parity_config(args: argparse.Namespace):
     """Our `sac` config under the `paper` preset with this benchmark's budget and evaluation."""
-    from adarl.algos import SAC_FAMILY, sac
+    from adarl.algos import sac_config
+    from adarl.algos.sac_config import SAC_FAMILY
 
-    values = {**SAC_FAMILY["sac"], **sac.PRESETS["paper"]}
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["paper"]}
     values.update(
         algo="sac",
         task=TASK,
@@ -134,13 +135,13 @@ def parity_config(args: argparse.Namespace):
         eval_dynamics=(EVAL_DYNAMICS,),
         checkpoint_every=args.steps,  # one checkpoint, at the end (SB3 saves none)
         # never full at this budget, so a smaller buffer changes nothing but memory
-        buffer_size=min(sac.SACConfig.buffer_size, args.steps),
+        buffer_size=min(sac_config.SACConfig.buffer_size, args.steps),
     )
     if args.start_steps is not None:
         values["start_steps"] = args.start_steps
     if args.update_after is not None:
         values["update_after"] = args.update_after
-    config = sac.SACConfig(**values)
+    config = sac_config.SACConfig(**values)
     if args.steps % config.update_every:
         raise UsageError(f"--steps must be a multiple of {config.update_every}, got {args.steps}")
     return config.validate()

@@ -30,11 +30,12 @@ configure_xla()
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from adarl.algos import SAC_FAMILY, sac  # noqa: E402
+from adarl.algos import sac, sac_config  # noqa: E402
+from adarl.algos.sac_config import SAC_FAMILY  # noqa: E402
 from adarl.train import loop, sac_learner  # noqa: E402
 
 
-def paper_config(algo: str, seeds: int, **overrides) -> sac.SACConfig:
+def paper_config(algo: str, seeds: int, **overrides) -> sac_config.SACConfig:
     values = {
         **SAC_FAMILY[algo],
         "algo": algo,
@@ -47,11 +48,11 @@ def paper_config(algo: str, seeds: int, **overrides) -> sac.SACConfig:
         "total_steps": 10**9,
     }
     values.update(overrides)
-    return sac.SACConfig(**values).validate()
+    return sac_config.SACConfig(**values).validate()
 
 
 def training_rate(
-    config: sac.SACConfig, steps: int, warmup: int
+    config: sac_config.SACConfig, steps: int, warmup: int
 ) -> tuple[float, sac_learner.SACLearner]:
     """Environment steps per second (per process) of the training loop, after `warmup` steps."""
     learner = sac_learner.SACLearner(config)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adarl.algos import rnac
+from adarl.algos import rnac, rnac_config
 from adarl.runs.layout import EPISODES_CSV
 from adarl.runs.logs import read_csv
 from adarl.train import rnac_learner
@@ -68,7 +68,7 @@ def candidate_cost(task: str, steps: int, n: int = 2) -> tuple[float, float]:
 
     env = make(task, dynamics="paper", seed=0)
     shadow = rnac_learner.ShadowSimulator(env)
-    config = rnac.RNACConfig()
+    config = rnac_config.RNACConfig()
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     state, _ = rnac.init_states([0], config, obs_dim, act_dim)
     critic = rnac.host_params(state)[0][1]
@@ -93,7 +93,7 @@ def candidate_cost(task: str, steps: int, n: int = 2) -> tuple[float, float]:
 def train_throughput(task: str, steps: int, seeds: int, **overrides) -> dict:
     """Run the trainer (after a one-rollout warm-up run that compiles the update): env steps per
     seed per wall-clock second and per CPU second of the whole run, candidates per step."""
-    config = rnac.RNACConfig(
+    config = rnac_config.RNACConfig(
         task=task,
         seeds=tuple(range(seeds)),
         total_steps=steps,
@@ -101,7 +101,7 @@ def train_throughput(task: str, steps: int, seeds: int, **overrides) -> dict:
         checkpoint_every=10**12,
         **overrides,
     )
-    config.log_every = config.rollout_steps
+    config = dataclasses.replace(config, log_every=config.rollout_steps)
     with tempfile.TemporaryDirectory() as tmp:
         warm = dataclasses.replace(config, total_steps=config.rollout_steps)
         rnac_learner.train(warm, Path(tmp) / "warm-up", progress=False)
@@ -121,7 +121,7 @@ def train_throughput(task: str, steps: int, seeds: int, **overrides) -> dict:
 
 def update_seconds(seeds: int) -> float:
     """Wall time of one update (2048 × 10 epochs / 64) for `seeds` vmapped seeds."""
-    config = rnac.RNACConfig(seeds=tuple(range(seeds)))
+    config = rnac_config.RNACConfig(seeds=tuple(range(seeds)))
     state, keys = rnac.init_states(list(config.seeds), config, 11, 3)
     rng = np.random.default_rng(0)
     s, t = seeds, config.rollout_steps

@@ -1,20 +1,21 @@
 """Every algorithm by name: its config class, the fields that define it, its per-task defaults,
-its presets and its trainer. The CLI, the sweeps and the report read this table; adding an
-algorithm is a new maths file in `adarl/algos`, a trainer in `adarl/train` and one entry here
-(docs/algorithms.md, "Adding an algorithm").
+its presets and its roles in the paper's protocol. The CLI, the sweeps and the report read this
+table; adding an algorithm is a config (and presets) in `adarl/algos/<name>_config.py`, its maths
+in `adarl/algos`, one entry here and one in `adarl.train.trainers` (docs/algorithms.md, "Adding an
+algorithm").
 
 A config is resolved in one order everywhere (`resolve_config`): the config class's defaults
 <- the algorithm's defining fields <- its per-task defaults <- the preset <- the flags.
 
-The table names the config classes, presets and trainers as "module:attribute" and imports them
-when asked, so reading it (the report, `adarl --help`) does not load JAX.
+Everything here is JAX-free (configs and presets live apart from the maths), so reading the
+table (the report, `adarl --help`) does not load JAX. The trainers, which do, are in
+`adarl.train.trainers`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib
 import inspect
 import io
 import tokenize
@@ -22,31 +23,25 @@ import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
+from adarl.algos import rnac_config, sac_config
 from adarl.algos.flags import parse_value, type_text
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError, check_choice
 
 # keys config.yaml holds beside the config fields (docs/run-format.md)
 RUN_RECORD_KEYS = ("algo", "format_version", "adarl_version", "command", "fork")
 
 
-def _load(path: str):
-    module, _, attribute = path.partition(":")
-    return getattr(importlib.import_module(module), attribute)
-
-
 @dataclass(frozen=True)
 class Algorithm:
     name: str
-    config: str  # "module:Class" of its config dataclass
+    config_class: type  # its config dataclass (a `RunConfig`)
     # config fields that define the algorithm (applied before presets and flags)
     defaults: Mapping[str, object]
     # task -> fields, below the preset and the flags (a budget where the user sets none)
     task_defaults: Mapping[str, Mapping[str, object]]
-    preset_table: str  # "module:DICT" of its presets (name -> fields)
+    presets: Mapping[str, Mapping[str, object]]  # preset name -> fields
     default_preset: str
-    # "module:function" of the trainer, train(config, run_dir, resume, progress, command); named,
-    # not imported, because `adarl/train` sits above `adarl/algos`
-    trainer: str
     # fields a config.yaml written before they existed is read with (their value back then)
     legacy_fields: Mapping[str, object] = field(default_factory=dict)
     # the trainer keeps each seed's best policy by evaluation beside the final one (docs/run-format.md)
@@ -62,14 +57,6 @@ class Algorithm:
     best_of: str | None = None
     # the algorithm this one is the schedule-matched control of: the report pairs their seeds
     control_of: str | None = None
-
-    @property
-    def config_class(self) -> type:
-        return _load(self.config)
-
-    @property
-    def presets(self) -> Mapping[str, Mapping[str, object]]:
-        return _load(self.preset_table)
 
 
 # ---------------------------------------------------------------------------- report labels
@@ -107,22 +94,7 @@ def _adarl_label(value) -> str:
 # Table 1 order of methods in reports; other algorithms follow
 REFERENCE = "adarl"
 REPORT_ORDER = ("adarl", "adarl-control", "sac", "sac-parseval", "sac-sparse", "rnac")
-# the SAC family: configurations of adarl/algos/sac.py, trained by adarl/train/sac_learner.py
-SAC_FAMILY: dict[str, dict] = {
-    "sac": {},
-    "adarl": {"bottleneck": ("actor:1", "critic:1"), "adapt_rank": True},
-    # AdaRL's schedule-matched control: the same truncations (SVD re-parameterisation, resets,
-    # warm-up), the rule's rank logged but never applied (docs/algorithms.md)
-    "adarl-control": {
-        "bottleneck": ("actor:1", "critic:1"),
-        "adapt_rank": True,
-        "apply_cuts": False,
-    },
-    "sac-fixed-rank": {"bottleneck": ("actor:1", "critic:1"), "adapt_rank": False},
-    "sac-parseval": {"parseval_coef": 1e-4, "init": "orthogonal"},
-    "sac-sparse": {"sparse_width": 1024},
-}
-
+# the SAC family: configurations of adarl/algos/sac.py (`SAC_FAMILY`), trained by the one loop
 SAC_FAMILY_ROLES: dict[str, dict] = {
     "adarl": {"report_label": _adarl_label, "adapts_rank": True},
     "adarl-control": {"report_label": _adarl_label, "control_of": "adarl"},
@@ -130,30 +102,17 @@ SAC_FAMILY_ROLES: dict[str, dict] = {
     "sac-parseval": {"best_of": "parseval_coef"},
     "sac-sparse": {"report_label": _sparse_label},
 }
-
-# AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):
-# the paper's d_t (10⁶ gradient steps, 0.7·10⁶ on Walker2d) and the `paper-table1` step budgets,
-# so that a default run truncates (Hopper 2, the others 4 times); a flat 10⁶ steps would not.
-TASK_DEFAULTS: dict[str, dict[str, dict]] = {
-    "adarl": {
-        "hopper": {"total_steps": 3_000_000, "truncate_every": 1_000_000},
-        "walker2d": {"total_steps": 3_000_000, "truncate_every": 700_000},
-        "ant": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
-        "humanoid": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
-    },
-}
-TASK_DEFAULTS["adarl-control"] = TASK_DEFAULTS["adarl"]  # the control runs AdaRL's schedule
+ADARL_SCHEDULE = ("adarl", "adarl-control")  # the control runs AdaRL's schedule
 
 ALGORITHMS: dict[str, Algorithm] = {
     **{
         name: Algorithm(
             name=name,
-            config="adarl.algos.sac:SACConfig",
+            config_class=sac_config.SACConfig,
             defaults={"algo": name, **fields},
-            task_defaults=TASK_DEFAULTS.get(name, {}),
-            preset_table="adarl.algos.sac:PRESETS",
+            task_defaults=sac_config.ADARL_TASK_DEFAULTS if name in ADARL_SCHEDULE else {},
+            presets=sac_config.PRESETS,
             default_preset="paper",
-            trainer="adarl.train.sac_learner:train",
             legacy_fields={"lr_schedule": "restart"},
             **SAC_FAMILY_ROLES.get(name, {}),
         )
@@ -161,12 +120,11 @@ ALGORITHMS: dict[str, Algorithm] = {
     },
     "rnac": Algorithm(
         name="rnac",
-        config="adarl.algos.rnac:RNACConfig",
+        config_class=rnac_config.RNACConfig,
         defaults={},
         task_defaults={},
-        preset_table="adarl.algos.rnac:PRESETS",
+        presets=rnac_config.PRESETS,
         default_preset="default",
-        trainer="adarl.train.rnac_learner:train",
         best_policy=True,
     ),
 }
@@ -180,14 +138,9 @@ def get(name: str) -> Algorithm:
     return ALGORITHMS[check_choice("algo", name, ALGOS)]
 
 
-def trainer(algo: str) -> Callable:
-    """The algorithm's `train(config, run_dir, resume=False, progress=True, command="")`."""
-    return _load(get(algo).trainer)
-
-
 def config_classes() -> list[type]:
     """Every config class, once, in registry order."""
-    return [_load(path) for path in dict.fromkeys(a.config for a in ALGORITHMS.values())]
+    return list(dict.fromkeys(a.config_class for a in ALGORITHMS.values()))
 
 
 def report_label(values: Mapping, value: Callable | None = None) -> str:
@@ -215,19 +168,14 @@ def field_names(algo: str) -> set[str]:
     return {f.name for f in dataclasses.fields(get(algo).config_class)}
 
 
-def algo_of(config) -> str:
-    """The registered name of a config's algorithm."""
-    name = getattr(config, "algo", None)
-    if name in ALGORITHMS:
-        return name
-    return next(a.name for a in ALGORITHMS.values() if isinstance(config, a.config_class))
-
-
 # ---------------------------------------------------------------------------- config resolution
-def resolve_config(algo: str, preset: str | None = None, flags: Mapping[str, object] = ()):
+def resolve_config(
+    algo: str, preset: str | None = None, flags: Mapping[str, object] = (), check: bool = True
+):
     """The validated config of `algo`: class defaults <- the algorithm's fields <- its per-task
     defaults <- `preset` (None: the algorithm's default preset) <- `flags` (field -> value, or
-    text as typed on a command line, parsed by the field's type)."""
+    text as typed on a command line, parsed by the field's type). `check=False` skips the
+    validation (`--help` shows the defaults of an algorithm that needs a flag, as --rank)."""
     entry = get(algo)
     cls = entry.config_class
     preset = preset or entry.default_preset
@@ -246,7 +194,8 @@ def resolve_config(algo: str, preset: str | None = None, flags: Mapping[str, obj
     values.update(entry.presets[preset])
     values.update(parsed)
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
-    return cls(**values).validate()
+    config = cls(**values)
+    return config.validate() if check else config
 
 
 def config_from_record(values: dict, where: str):
@@ -258,7 +207,7 @@ def config_from_record(values: dict, where: str):
     if unknown:  # a typo or a hand edit: dropping it silently would change the run
         raise UsageError(
             f"{where} has unknown field {unknown[0]!r}; allowed: the config fields of "
-            f"--algo {algo} (adarl train --help)"
+            f"--algo {algo} (adarl train --algo {algo} --help)"
         )
     kept = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in names}
     for name, value in entry.legacy_fields.items():
@@ -267,11 +216,22 @@ def config_from_record(values: dict, where: str):
 
 
 # ---------------------------------------------------------------------------- help text
-@functools.cache
 def field_help(cls: type) -> dict[str, str]:
-    """Each field's meaning, read from the comments next to it in the class body: the comment
-    at the end of the field's line, after the comment lines right above it (a `# --- section`
-    line is a heading, not help). The comments are the one place a field is explained."""
+    """Each field's meaning, read from the comments next to it in the class body (a subclass's
+    comment over its base's, for a redeclared field). The comments are the one place a field is
+    explained."""
+    out: dict[str, str] = {}
+    for klass in reversed(cls.__mro__):
+        if dataclasses.is_dataclass(klass):
+            out.update(_class_field_help(klass))
+    return out
+
+
+@functools.cache
+def _class_field_help(cls: type) -> dict[str, str]:
+    """The help of the fields declared in `cls`'s own body: the comment at the end of the
+    field's line, after the comment lines right above it (a `# --- section` line is a heading,
+    not help)."""
     try:
         source = inspect.getsource(cls)
     except (OSError, TypeError):  # no source (a frozen install): no help text

@@ -12,17 +12,17 @@ Follows the public PPO-based trainer (github.com/tliu1997/RNAC, `train_rnac.py`,
 * ``ipm`` (integral probability metric): every TD residual subtracts `weight_reg`·‖θ_V‖₂, the
   norm of all critic weights and all biases but the last.
 
-Reads top to bottom: config and presets; networks; the maths as pure functions (GAE, clipped
-objective, IPM norm, worst-case selection); the jitted update (epochs × minibatches in
-`lax.scan`, vmapped over seeds); running normalisers; the policy export. Its learner (the
-double-sampling simulator, the host state) is `adarl.train.rnac_learner`, trained by the one loop
-`adarl.train.loop` (logs, evaluation, checkpoints).
+Reads top to bottom: networks; the maths as pure functions (GAE, clipped objective, IPM norm,
+worst-case selection); the jitted update (epochs × minibatches in `lax.scan`, vmapped over
+seeds); running normalisers; the policy export. The config and presets are
+`adarl.algos.rnac_config`; its learner (the double-sampling simulator, the host state) is
+`adarl.train.rnac_learner`, trained by the one loop `adarl.train.loop` (logs, evaluation,
+checkpoints).
 Deviations from the original are listed in docs/rnac.md.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import jax
@@ -30,12 +30,10 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from adarl.envs.tasks import PHYSICS, VERSIONS
-from adarl.errors import EVAL_DYNAMICS_EMPTY, ON_DIVERGENCE, UsageError, check_choice, check_numbers
+from adarl.algos.rnac_config import RNACConfig
 from adarl.nets.gaussian import gaussian_entropy, gaussian_log_prob
 from adarl.nets.mlp import orthogonal
 
-UNCERTAINTY_SETS = ("ds", "ipm")
 TRAIN_COLUMNS = [
     "step",
     "seed",
@@ -48,134 +46,6 @@ TRAIN_COLUMNS = [
     "clip_frac",
 ]
 METRICS = TRAIN_COLUMNS[3:]  # what an update reports, in this order
-
-
-# ============================================================================ config
-@dataclass
-class RNACConfig:
-    """Every hyperparameter of an RNAC run. Defaults: the public RNAC code's settings."""
-
-    # --- run
-    task: str = "hopper"  # hopper, walker2d, ant or humanoid (adarl tasks)
-    # physics schedule: paper, ompo, nominal, uniform, default, fixed:p=v,… (docs/envs.md)
-    dynamics: str = "paper"
-    physics: str = "consistent"  # consistent (recompile: masses follow geometry) or ompo
-    model_version: str = "v5"  # Gymnasium's v5 or v4 (the port of the paper's Gym v3) models
-    seeds: tuple[int, ...] = (0,)  # seeds trained together in one process, e.g. 0-4
-    total_steps: int = 3_000_000  # environment steps per seed
-    # --- uncertainty set
-    uncertainty_set: str = "ds"  # ds (double sampling) or ipm
-    # ds: P(take the worst-valued candidate). The original draws one of n+1 outcomes, outcome n
-    # being "the worst", i.e. δ = 1/(n+1) = 1/3 for its 2 candidates.
-    delta: float = 1.0 / 3.0
-    n_candidates: int = 2  # ds: candidate next states drawn per step
-    # ds: simulate and value the candidates at every step, as the original does, instead of only
-    # on the steps that take the worst case (same transitions, more simulator steps)
-    eager_candidates: bool = False
-    action_noise: float = 5e-3  # uniform ±noise on every executed action (both sets)
-    weight_reg: float = 1e-5  # ipm: TD residual −= weight_reg·‖θ_V‖₂ (ds: 0, as the original)
-    # --- PPO (the original's tricks 1-10)
-    hidden: tuple[int, ...] = (64, 64)  # hidden layer widths (tanh) of actor and critic
-    rollout_steps: int = 2048  # "batch_size" of the original: env steps per seed per update
-    minibatch_size: int = 64  # samples per gradient step
-    epochs: int = 10  # passes over each rollout
-    clip_eps: float = 0.2  # PPO's clip range ε
-    gamma: float = 0.99  # discount factor
-    gae_lambda: float = 0.95  # GAE's λ
-    lr: float = 3e-4  # actor and critic
-    lr_decay: bool = True  # linear to 0 at total_steps
-    adam_eps: float = 1e-5  # Adam's ε
-    max_grad_norm: float = 0.5  # gradients are clipped to this global norm
-    ent_coef: float = 0.01  # entropy bonus coefficient
-    init_log_std: float = 0.0  # initial log standard deviation of the policy
-    norm_adv: bool = True  # normalise the advantages over each rollout
-    obs_norm: bool = True  # normalise observations by a running mean and variance
-    obs_clip: float = 10.0  # normalised observations are clipped to ±obs_clip
-    reward_scaling: bool = True  # divide rewards by the running std of the discounted return
-    # --- evaluation, logging, checkpoints (all in environment steps per seed)
-    eval_every: int = 5000  # environment steps between evaluations
-    eval_episodes: int = 3  # deterministic episodes per seed and evaluation dynamics
-    eval_dynamics: tuple[str, ...] = ("nominal",)  # dynamics to evaluate under (comma-separated)
-    log_every: int = 2048  # environment steps between train.csv rows
-    checkpoint_every: int = 100_000  # environment steps between checkpoints
-    keep_checkpoints: int = 2  # newest checkpoints kept on disk
-    # a non-finite loss, parameter or return: stop (exit code 3) or continue (docs/reliability.md)
-    on_divergence: str = "stop"
-
-    def validate(self) -> RNACConfig:
-        """Raise a one-line UsageError on any bad value; return self."""
-        check_numbers(self)
-        check_choice("uncertainty set", self.uncertainty_set, UNCERTAINTY_SETS)
-        check_choice("physics", self.physics, PHYSICS)
-        check_choice("model version", self.model_version, VERSIONS)
-        check_choice("on-divergence", self.on_divergence, ON_DIVERGENCE)
-        if not (0.0 <= self.delta <= 1.0):
-            raise UsageError(f"delta must be in [0, 1], got {self.delta}")
-        if self.n_candidates < 1:
-            raise UsageError(f"n-candidates must be ≥ 1, got {self.n_candidates}")
-        positive = [
-            "total_steps",
-            "rollout_steps",
-            "minibatch_size",
-            "epochs",
-            "eval_every",
-            "log_every",
-            "checkpoint_every",
-            "keep_checkpoints",
-            "lr",
-            "clip_eps",
-            "adam_eps",
-            "max_grad_norm",
-            "obs_clip",
-            "eval_episodes",  # as the SAC family: 0 would silently skip every evaluation
-        ]
-        for name in positive:
-            if not getattr(self, name) > 0:
-                raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
-        for name in ("action_noise", "weight_reg", "ent_coef"):
-            if not getattr(self, name) >= 0:
-                raise UsageError(f"{name.replace('_', '-')} must be ≥ 0, got {getattr(self, name)}")
-        if self.rollout_steps % self.minibatch_size:
-            raise UsageError(
-                f"rollout-steps ({self.rollout_steps}) must be a multiple of minibatch-size "
-                f"({self.minibatch_size})"
-            )
-        if self.rollout_steps < 2:
-            raise UsageError(f"rollout-steps must be ≥ 2, got {self.rollout_steps}")
-        if not 0.0 < self.gamma <= 1.0:
-            raise UsageError(f"gamma must be in (0, 1], got {self.gamma}")
-        if not 0.0 <= self.gae_lambda <= 1.0:
-            raise UsageError(f"gae-lambda must be in [0, 1], got {self.gae_lambda}")
-        if not self.seeds:
-            raise UsageError("seeds is empty; give at least one seed, e.g. --seeds 0-4")
-        if not self.eval_dynamics:
-            raise UsageError(EVAL_DYNAMICS_EMPTY)
-        if len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
-            raise UsageError(f"seeds must be distinct and ≥ 0, got {list(self.seeds)}")
-        if not self.hidden or any(h < 1 for h in self.hidden):
-            raise UsageError(f"hidden sizes must be ≥ 1, got {list(self.hidden)}")
-        return self
-
-
-PRESETS: dict[str, dict] = {
-    # the issue's (= the public RNAC code's) settings, double sampling
-    "default": {},
-    # the same with the IPM uncertainty set
-    "ipm": {"uncertainty_set": "ipm"},
-    # the AdaRL paper's environments as its OMPO code ran them (as sac's `paper-ompo`)
-    "paper-ompo": {"dynamics": "ompo", "physics": "ompo", "model_version": "v4"},
-    # tiny budgets for tests and smoke runs
-    "smoke": {
-        "total_steps": 2048,
-        "rollout_steps": 256,
-        "minibatch_size": 64,
-        "epochs": 2,
-        "eval_every": 1024,
-        "eval_episodes": 1,
-        "log_every": 256,
-        "checkpoint_every": 1024,
-    },
-}
 
 
 # ============================================================================ networks

@@ -8,25 +8,25 @@ MuJoCo) inside `run` so `adarl --help` is fast.
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import sys
 
 from adarl import __version__
+from adarl.cli import evaluate, export, play, ranks, report, sweep, tasks, theory, train
 from adarl.cli.common import add_common_arguments
 from adarl.errors import RunFailed, UsageError
 from adarl.runtime import configure_xla
 
 COMMANDS = {
-    "train": "adarl.cli.train",
-    "tasks": "adarl.cli.tasks",
-    "ranks": "adarl.cli.ranks",
-    "evaluate": "adarl.cli.evaluate",
-    "report": "adarl.cli.report",
-    "play": "adarl.cli.play",
-    "export": "adarl.cli.export",
-    "sweep": "adarl.cli.sweep",
-    "theory": "adarl.cli.theory",
+    "train": train,
+    "tasks": tasks,
+    "ranks": ranks,
+    "evaluate": evaluate,
+    "report": report,
+    "play": play,
+    "export": export,
+    "sweep": sweep,
+    "theory": theory,
 }
 
 
@@ -44,15 +44,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"adarl {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
-    for name, module_name in COMMANDS.items():
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            if exc.name != module_name:
-                raise
-            continue  # command not built yet
+    for name, module in COMMANDS.items():
         description = getattr(module, "DESCRIPTION", module.HELP)
-        p = sub.add_parser(name, help=module.HELP, description=description)
+        # conflicts resolve: a command may bring its own --help (adarl train --algo X --help)
+        p = sub.add_parser(
+            name, help=module.HELP, description=description, conflict_handler="resolve"
+        )
         module.add_arguments(p)
         add_common_arguments(p)
         p.set_defaults(_run=module.run)

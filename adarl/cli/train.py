@@ -12,11 +12,33 @@ from pathlib import Path
 from adarl.errors import UsageError
 
 HELP = "train an algorithm (AdaRL, SAC baselines, RNAC) on a task, or resume a run"
-RUN_FLAGS = ("algo", "task", "dynamics", "seeds", "total_steps")
 REPORT_PRESETS = ("quickstart",)  # presets whose runs end with a report in RUN_DIR/report
+DEFAULT_ALGO = "adarl"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The run flags and every config field of every algorithm as a flag (`--algo` may come
+    after them); `--help` lists the fields of the algorithm `--algo` names before it. A parser
+    with a help flag must resolve conflicts (`adarl.cli.main`'s do): this one replaces it."""
+    from adarl.algos import registry
+
+    _add_run_arguments(parser)
+    seen = {"algo"}
+    for cls in registry.config_classes():
+        for f in dataclasses.fields(cls):
+            if f.name not in seen:
+                seen.add(f.name)
+                parser.add_argument(
+                    _flag(f.name), dest=f"cfg_{f.name}", default=None, help=argparse.SUPPRESS
+                )
+    if parser.add_help:  # argparse's --help, replaced (the parser resolves conflicts)
+        parser.add_argument(
+            "-h", "--help", action=_AlgoHelp, nargs=0, help="show this help message and exit"
+        )
+
+
+def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    """The flags that are not config fields."""
     from adarl.algos import registry
 
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
@@ -28,9 +50,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "  adarl train --resume runs/hopper-adarl-20261121-120000\n"
         "  adarl train --fork runs/hopper-adarl-20261121-120000 --at first-truncation "
         "--apply-cuts false --out runs/hopper-control\n"
-        "Every config field is a flag (--field-name VALUE); tuples take commas (--seeds 0,2,4 or 0-4)."
+        "Every config field is a flag (--field-name VALUE); tuples take commas (--seeds 0,2,4 or "
+        "0-4).\nadarl train --algo ALGO --help lists ALGO's fields with its defaults."
     )
-    parser.add_argument("--algo", default=None, help=", ".join(registry.ALGOS) + " (default adarl)")
+    parser.add_argument(
+        "--algo", default=None, help=", ".join(registry.ALGOS) + f" (default {DEFAULT_ALGO})"
+    )
     parser.add_argument(
         "--preset",
         default=None,
@@ -73,41 +98,69 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     track.add_argument("--wandb-project", default=None, help="W&B project (default adarl)")
     track.add_argument("--wandb-entity", default=None, help="W&B entity (team or user)")
     track.add_argument("--wandb-group", default=None, help="W&B group (adarl sweep: its name)")
-    seen = {"algo"}
-    for cls in registry.config_classes():
-        algos = [a.name for a in registry.ALGORITHMS.values() if a.config_class is cls]
-        group = parser.add_argument_group(f"config fields of --algo {', '.join(algos)}")
-        meanings = registry.field_help(cls)
-        for f in dataclasses.fields(cls):
-            if f.name in seen:
-                continue
-            seen.add(f.name)
-            meaning = meanings.get(f.name, "").replace("%", "%%")  # argparse formats help
-            group.add_argument(
-                f"--{f.name.replace('_', '-')}",
-                dest=f"cfg_{f.name}",
-                default=None,
-                metavar=_metavar(f),
-                help=(f"{meaning}; " if meaning else "") + f"default: {_default_text(f)}",
-            )
+
+
+class _AlgoHelp(argparse.Action):
+    """`--help`: the run flags, then the config fields of `--algo` (given before it; default
+    adarl) with that algorithm's defaults."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from adarl.algos import registry
+        from adarl.cli.common import add_common_arguments
+
+        try:
+            algo = registry.get(namespace.algo or DEFAULT_ALGO).name
+        except UsageError as exc:
+            parser.error(str(exc))
+        page = argparse.ArgumentParser(prog=parser.prog, description=parser.description)
+        _add_run_arguments(page)
+        add_common_arguments(page)
+        add_config_fields(page, algo)
+        page.print_help()
+        parser.exit()
+
+
+def add_config_fields(parser: argparse.ArgumentParser, algo: str) -> None:
+    """`algo`'s config fields as flags, each with its meaning and its default as the registry
+    resolves it (the default preset, then the per-task budgets)."""
+    from adarl.algos import registry
+
+    entry = registry.get(algo)
+    defaults = registry.resolve_config(algo, check=False)
+    meanings = registry.field_help(entry.config_class)
+    group = parser.add_argument_group(
+        f"config fields of --algo {algo} (defaults: preset {entry.default_preset})"
+    )
+    for f in dataclasses.fields(entry.config_class):
+        if f.name == "algo":
+            continue
+        meaning = meanings.get(f.name, "")
+        default = _value_text(getattr(defaults, f.name))
+        per_task = [
+            f"on {task}: {_value_text(fields[f.name])}"
+            for task, fields in entry.task_defaults.items()
+            if f.name in fields
+        ]
+        default += f" ({'; '.join(per_task)})" if per_task else ""
+        group.add_argument(
+            _flag(f.name),
+            dest=f"cfg_{f.name}",
+            default=None,
+            metavar=_metavar(f),
+            help=((f"{meaning}; " if meaning else "") + f"default: {default}").replace("%", "%%"),
+        )
+
+
+def _flag(name: str) -> str:
+    return f"--{name.replace('_', '-')}"
 
 
 def _metavar(f) -> str:
     return str(f.type).replace("typing.", "").upper().split("[")[0].replace(" | NONE", "")
 
 
-def _default_text(f) -> str:
-    from adarl.algos import registry
-
-    value = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-    text = ",".join(map(str, value)) if isinstance(value, tuple) else str(value)
-    per_task = [
-        f"{algo.name} on {task}: {fields[f.name]}"
-        for algo in registry.ALGORITHMS.values()
-        for task, fields in algo.task_defaults.items()
-        if f.name in fields
-    ]
-    return (text + (f" ({'; '.join(per_task)})" if per_task else "")).replace("%", "%%")
+def _value_text(value) -> str:
+    return ",".join(map(str, value)) if isinstance(value, tuple) else str(value)
 
 
 def flags_from_args(args: argparse.Namespace) -> dict[str, str]:
@@ -123,13 +176,13 @@ def build_config(args: argparse.Namespace):
     """(algo, config): defaults <- the algorithm <- per-task defaults <- --preset <- flags."""
     from adarl.algos import registry
 
-    algo = registry.get(args.algo or "adarl").name
+    algo = registry.get(args.algo or DEFAULT_ALGO).name
     return algo, registry.resolve_config(algo, args.preset, flags_from_args(args))
 
 
 def run(args: argparse.Namespace) -> int:
-    from adarl.algos import registry
     from adarl.runs import folder
+    from adarl.train.trainers import trainer
 
     command = "adarl train " + shlex.join(sys.argv[2:]) if len(sys.argv) > 1 else "adarl train"
     started = time.monotonic()
@@ -140,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir = fork_run(args, command)
         algo, config = folder.config_from_run(run_dir)
         with _tracked(args, run_dir, config, command):
-            registry.trainer(algo)(config, run_dir, True, progress, command)
+            trainer(algo)(config, run_dir, True, progress, command)
     elif args.resume:
         given = list(flags_from_args(args))
         if given or args.preset or args.out:
@@ -149,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir = Path(args.resume)
         algo, config = folder.config_from_run(run_dir)
         with _tracked(args, run_dir, config, command):
-            registry.trainer(algo)(config, run_dir, True, progress, command)
+            trainer(algo)(config, run_dir, True, progress, command)
         # a resumed run reports like the run it continues (its --preset, its --report)
         recorded = recorded_args(str(folder.load_config(run_dir).get("command", "")))
         if recorded is not None:
@@ -164,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
             else Path("runs") / (f"{task}-{algo}-{time.strftime('%Y%m%d-%H%M%S')}")
         )
         with _tracked(args, run_dir, config, command):
-            registry.trainer(algo)(config, run_dir, False, progress, command)
+            trainer(algo)(config, run_dir, False, progress, command)
     finish(run_dir, time.monotonic() - started, args.report, args.preset)
     return 0
 

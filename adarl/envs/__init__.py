@@ -2,7 +2,7 @@
 
     env = make("hopper", dynamics="paper", seed=0)
     obs, info = env.reset()          # info["dynamics"], info["episode_index"]
-    make("hopper", "ompo", physics="ompo", version="v4")  # as the paper's OMPO code ran it
+    make("hopper", "ompo", physics="ompo", model_version="v4")  # as the paper's OMPO code ran it
 
 Task facts and schedules import without MuJoCo; `make`/`make_vec` load it on first use.
 """

@@ -244,27 +244,27 @@ def make(
     max_episode_steps: int = 1000,
     render_mode: str | None = None,
     physics: str = "consistent",
-    version: str = "v5",
+    model_version: str = "v5",
     **overrides: float,
 ) -> DynamicsEnv:
     """Task env following `dynamics` (a name like "paper" or "fixed:torso_length=0.5", or a
     `DynamicsSchedule`), with `overrides` fixed on top. `seed` seeds the first reset and the
     schedule's draws: the same seed gives the same parameter sequence. `physics`: `consistent`
     (recompile, masses follow geometry) or `ompo` (edit the compiled default model as OMPO does);
-    `version`: Gymnasium's `v5` or `v4` models. A task named `gym:<id>` is any registered
+    `model_version`: Gymnasium's `v5` or `v4` models. A task named `gym:<id>` is any registered
     Gymnasium env with fixed dynamics (`adarl.envs.plain`)."""
     check_choice("physics", physics, PHYSICS)
     if isinstance(task, str) and task.startswith("gym:"):
         from adarl.envs.plain import make_plain
 
-        if (physics, version) != ("consistent", "v5"):
+        if (physics, model_version) != ("consistent", "v5"):
             raise UsageError(
-                f"task {task!r} with physics {physics!r} and model version {version!r} does not "
+                f"task {task!r} with physics {physics!r} and model version {model_version!r} does not "
                 "exist; allowed: physics 'consistent' and version 'v5' for gym: tasks (the "
                 "switches apply to hopper, walker2d, ant, humanoid)"
             )
         return make_plain(task, dynamics, seed, max_episode_steps=max_episode_steps, **overrides)
-    spec = get_task(task, version)
+    spec = get_task(task, model_version)
     schedule = parse_dynamics(dynamics, spec.name).with_overrides(**overrides)
     if (
         isinstance(max_episode_steps, bool)
@@ -292,7 +292,7 @@ def make_vec(
     **overrides,
 ) -> gymnasium.vector.SyncVectorEnv:
     """One `make(task, dynamics, seed, **overrides)` env per seed, stepped together; `overrides`
-    may include `physics=` and `version=` (bad input raises from the first `make`, before any
+    may include `physics=` and `model_version=` (bad input raises from the first `make`, before any
     model is built)."""
     seeds = list(seeds)
     if not seeds:

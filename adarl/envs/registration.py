@@ -1,7 +1,7 @@
 """Gymnasium ids for the four tasks, and `TaskEnv`, the env behind them (RRLS-style parameters).
 
     import adarl  # registers adarl/Hopper-v0, adarl/Walker2d-v0, adarl/Ant-v0, adarl/Humanoid-v0
-    env = gymnasium.make("adarl/Hopper-v0", dynamics="paper", physics="consistent", version="v5")
+    env = gymnasium.make("adarl/Hopper-v0", dynamics="paper", physics="consistent", model_version="v5")
     obs, info = env.reset(options={"torso_length": 0.5, "foot_length": 0.3})
     env.unwrapped.get_params()  # {"torso_length": 0.5, "foot_length": 0.3, ...}
 
@@ -58,7 +58,7 @@ class TaskEnv(gymnasium.Env):
         *,
         render_mode: str | None = None,
         physics: str = "consistent",
-        version: str = "v5",
+        model_version: str = "v5",
         **overrides: float,
     ):
         from adarl.envs.env import make
@@ -70,7 +70,7 @@ class TaskEnv(gymnasium.Env):
             max_episode_steps=sys.maxsize,
             render_mode=render_mode,
             physics=physics,
-            version=version,
+            model_version=model_version,
             **overrides,
         )
         self.task = self.env.task

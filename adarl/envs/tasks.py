@@ -181,7 +181,7 @@ def get_task(name: str, version: str = "v5") -> TaskSpec:
 
 
 def env_options(config) -> dict[str, str]:
-    """`make`'s `physics` and `version` keywords from a run's config (a config dataclass or the
+    """`make`'s `physics` and `model_version` keywords from a run's config (a config dataclass or the
     dict of its config.yaml); a config without them (runs made before these switches) gets the
     defaults, `consistent` and `v5`."""
     if not isinstance(config, dict):
@@ -196,4 +196,7 @@ def env_options(config) -> dict[str, str]:
             queue.extend(v for v in node.values() if isinstance(v, dict))
         return default
 
-    return {"physics": find("physics", PHYSICS[0]), "version": find("model_version", VERSIONS[0])}
+    return {
+        "physics": find("physics", PHYSICS[0]),
+        "model_version": find("model_version", VERSIONS[0]),
+    }

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import sys
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -227,31 +226,3 @@ def _writer(path: str, fps: float):
             path, format="FFMPEG", fps=fps, codec="libx264", quality=7, macro_block_size=8
         ) as w:
             yield w.append_data
-
-
-def backend_available(backend: str = "egl") -> tuple[bool, str]:
-    """Whether MuJoCo can render offscreen with `backend`, checked in a subprocess (the backend is
-    fixed at import time). Returns (ok, reason)."""
-    import subprocess
-
-    code = (
-        "import mujoco\n"
-        "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/></worldbody></mujoco>')\n"
-        "r = mujoco.Renderer(m, 16, 16); r.update_scene(mujoco.MjData(m)); r.render(); print('ok')\n"
-    )
-    env = dict(
-        os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend if backend != "glfw" else ""
-    )
-    try:
-        done = subprocess.run(
-            [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60
-        )
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return False, f"{type(exc).__name__}: {exc}"
-    if done.returncode == 0 and "ok" in done.stdout:
-        return True, "ok"
-    tail = (done.stderr.strip().splitlines() or ["no output"])[-1]
-    return (
-        False,
-        f"MUJOCO_GL={backend} cannot render here ({tail[:200]}); needs {BACKEND_PACKAGES.get(backend)}",
-    )

@@ -22,8 +22,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-ACTIVATIONS = {"relu": jax.nn.relu, "tanh": jnp.tanh}
-INITS = ("torch", "orthogonal")
+from adarl.nets.choices import INITS
+
+ACTIVATION_FUNCTIONS = {"relu": jax.nn.relu, "tanh": jnp.tanh}  # one per name in ACTIVATIONS
 
 
 def make_layout(
@@ -132,7 +133,7 @@ def apply_layers(
     sparse_lam: float = 0.1,
 ) -> jnp.ndarray:
     """Forward pass. `masks[i]` is the rank mask of layer i if it is a bottleneck (else None)."""
-    act = ACTIVATIONS[activation]
+    act = ACTIVATION_FUNCTIONS[activation]
     last = max(i for i, spec in enumerate(layout) if spec[0] != "sparse")
     for i, (spec, p) in enumerate(zip(layout, params)):
         if spec[0] == "sparse":

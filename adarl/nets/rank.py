@@ -14,8 +14,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-RANK_RULES = ("cumulative", "ratio", "energy", "energy-squared")
-LR_SCHEDULES = ("envelope", "restart")
+from adarl.nets.choices import RANK_RULES
 
 
 def select_rank_cumulative(sigma: jnp.ndarray, beta: float) -> jnp.ndarray:
@@ -121,23 +120,6 @@ def reparameterise(u, s, vt, new_rank, dtype=jnp.float32):
     mask = rank_mask(new_rank, s.shape[0], dtype)
     root = jnp.sqrt(s) * mask
     return u * root[None, :], root[:, None] * vt, mask
-
-
-def truncate_bottleneck(w1, w2, mask, beta: float, rule: str = "cumulative"):
-    """One rank-adaptation step on a padded bottleneck (paper appendix, "Basic Settings").
-
-    Takes the SVD W1·W2 = U Σ Vᵀ, picks r_new = max(1, min(r_old, r̂)) and re-parameterises
-    W1 = U[:, :r] √Σ_r, W2 = √Σ_r V[:r, :]ᵀ, so W1·W2 becomes the best rank-r approximation of
-    the old product (Eckart–Young). Components past r are set to exactly zero.
-
-    Returns `(w1_new, w2_new, mask_new, sigma, proposed_rank)`; `sigma` is the spectrum cut or
-    padded to the bottleneck width.
-    """
-    u, s, vt = spectrum(w1, w2, mask)
-    old_rank = jnp.sum(mask).astype(jnp.int32)
-    proposed = select_rank(s, beta, rule)
-    w1_new, w2_new, new_mask = reparameterise(u, s, vt, next_rank(old_rank, proposed), w1.dtype)
-    return w1_new, w2_new, new_mask, s, proposed
 
 
 def relative_error(approx: jnp.ndarray, reference: jnp.ndarray) -> jnp.ndarray:

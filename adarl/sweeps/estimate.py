@@ -136,16 +136,6 @@ def pick_rate(
     raise ValueError("no throughput measurement at all")
 
 
-def schedule_seconds(durations: list[float], slots: int) -> float:
-    """Wall time of running `durations` in order on `slots` slots, each job to the first free
-    slot (what the local pool and Ray do with equal units)."""
-    free = [0.0] * max(1, slots)
-    for duration in durations:
-        start = heapq.heappop(free)
-        heapq.heappush(free, start + duration)
-    return max(free)
-
-
 def fork_schedule_seconds(jobs: list[tuple[str, float, str | None, float]], slots: int) -> float:
     """Wall time of the runner's schedule of `jobs` (id, duration, parent id or None, seconds
     after the parent's start at which it may start), listed in submission order: each free

@@ -45,13 +45,6 @@ def unit_record(unit, out: Path) -> dict:
     return {"algo": unit.algo, "config": config_record(unit.config)}
 
 
-def trainer(algo: str):
-    """The algorithm's `train(config, run_dir, resume, progress, command)`, from the registry."""
-    from adarl.algos import registry
-
-    return registry.trainer(algo)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m adarl.sweeps.worker")
     parser.add_argument("--run-dir", required=True)
@@ -157,6 +150,7 @@ def _train(args: argparse.Namespace, run_dir: Path, resume: bool, command: str) 
     from adarl.evaluation.summary import training_summary
     from adarl.runs import folder, tracking
     from adarl.train import fork
+    from adarl.train.trainers import trainer
 
     started = time.monotonic()
     unit = args.unit

@@ -25,6 +25,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from adarl.algos.sac_config import SAC_FAMILY, SACConfig
 from adarl.errors import UsageError
 from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, folder
@@ -66,7 +67,6 @@ FORKABLE = (
     "on_divergence",
 )
 FIRST_TRUNCATION = "first-truncation"  # --at: the parent's first truncation step
-SAC_TRAINER = "adarl.train.sac_learner:train"
 # AdaRL and its control: `apply_cuts` decides which of the two a fork is
 CONTROL_PAIR = {True: "adarl", False: "adarl-control"}
 
@@ -79,21 +79,18 @@ class Fork:
     step: int
     checkpoint: Path  # the parent's checkpoint folder it starts from
     algo: str
-    config: object  # the child's SACConfig
+    config: SACConfig  # the child's
     record: dict  # config.yaml's `fork`
 
 
 def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) -> Fork:
     """Check a fork of run `parent` at `at` (a step, or `first-truncation`) with `changes`
     (field -> value, or text as typed) without writing anything; one-line UsageErrors."""
-    from adarl.algos import registry
-
     parent = Path(parent).resolve()
     algo, before = folder.config_from_run(parent)
-    if registry.get(algo).trainer != SAC_TRAINER:
-        family = [a.name for a in registry.ALGORITHMS.values() if a.trainer == SAC_TRAINER]
+    if not isinstance(before, SACConfig):
         raise UsageError(
-            f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(family)})"
+            f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(SAC_FAMILY)})"
         )
     config, changed = forked_config(algo, before, changes)
     step = fork_step(before, at)
@@ -191,9 +188,10 @@ def forked_config(algo: str, parent, changes: Mapping[str, object]):
 
 
 def check_forkable(parent, child) -> dict:
-    """The fields in which config `child` differs from `parent` ({from, to}), or a one-line
-    UsageError naming the first one a fork cannot change (the sweeps check their fork units
-    with it)."""
+    """The fields in which config `child` differs from `parent` ({from, to}), in `FORKABLE`'s
+    order (a sweep's fork arguments follow it, whatever the config class's field order), or a
+    one-line UsageError naming the first one a fork cannot change (the sweeps check their fork
+    units with it)."""
     then, now = checkpoints.config_record(parent), checkpoints.config_record(child)
     changed = {k: {"from": then.get(k), "to": now[k]} for k in now if then.get(k) != now[k]}
     if "algo" in changed and set(CONTROL_PAIR.values()) != {then["algo"], now["algo"]}:
@@ -207,7 +205,8 @@ def check_forkable(parent, child) -> dict:
                 f"{name} differs ({then.get(name)!r} in the parent, {now[name]!r} in the fork) "
                 "but cannot change at a fork"
             )
-    return changed
+    order = (*FORKABLE, "algo")
+    return dict(sorted(changed.items(), key=lambda item: order.index(item[0])))
 
 
 def write(fork: Fork, out: Path, command: str) -> None:

@@ -21,7 +21,6 @@ import numpy as np
 from adarl.algos.rnac import (
     METRICS,
     TRAIN_COLUMNS,
-    RNACConfig,
     clip,
     critic_value,
     draw_double_sampling,
@@ -34,6 +33,7 @@ from adarl.algos.rnac import (
     select_candidate,
     welford,
 )
+from adarl.algos.rnac_config import RNACConfig
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec
 from adarl.train import loop
@@ -196,7 +196,7 @@ class RNACLearner:
 
         self.config = config
         self.seeds = [int(s) for s in config.seeds]
-        self.env_options = envs.env_options(config)  # physics and model version
+        self.env_options = config.env_options()
         for spec in config.eval_dynamics:  # checked now, not at the first evaluation
             envs.parse_dynamics(spec, config.task)
         self.envs = [

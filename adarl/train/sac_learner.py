@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from adarl.algos import replay, sac
+from adarl.algos import replay, sac, sac_config
 from adarl.errors import UsageError
 from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, codec, layout
@@ -140,18 +140,14 @@ class Lane:
 class SACLearner:
     """Environments, lanes of seeds and the host state of a SAC-family run."""
 
-    def __init__(self, config: sac.SACConfig):
+    def __init__(self, config: sac_config.SACConfig):
         from adarl.envs import make
 
         self.config = config
         self.algo = config.algo
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
-        self.env_options = {
-            "max_episode_steps": config.max_episode_steps,
-            "physics": config.physics,
-            "version": config.model_version,
-        }
+        self.env_options = config.env_options()
         self.envs = [  # an unknown task or dynamics fails here, before anything is written
             make(config.task, dynamics=config.dynamics, seed=s, **self.env_options)
             for s in self.seeds
@@ -592,7 +588,7 @@ def _take(tree, i: int | slice):
 
 
 def train(
-    config: sac.SACConfig,
+    config: sac_config.SACConfig,
     run_dir: str | Path,
     resume: bool = False,
     progress: bool = True,

@@ -1,6 +1,14 @@
-"""The algorithm registry: the protocol roles the report reads instead of algorithm names."""
+"""The algorithm registry: the protocol roles the report reads instead of algorithm names, and
+the configs it resolves."""
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
 
 from adarl.algos import registry
+from adarl.algos.config import RunConfig
 
 
 def test_protocol_roles_come_from_the_registry():
@@ -17,3 +25,39 @@ def test_protocol_roles_come_from_the_registry():
     assert registry.role("td3", "adapts_rank") is False and registry.role("td3", "best_of") is None
     assert registry.REFERENCE in registry.ALGOS
     assert set(registry.REPORT_ORDER) <= set(registry.ALGOS)
+
+
+# every algorithm × preset × task (and none), resolved by the registry before the config spine
+# (adarl 2c09826): each class's defaults, and per case the fields that differ from them
+RESOLVED = json.loads((Path(__file__).parents[1] / "data" / "resolved-configs.json").read_text())
+# fields added since, with the value every config had before them
+ADDED = {"RNACConfig": {"algo": "rnac", "max_episode_steps": 1000}}
+
+
+def _plain(config) -> dict:
+    return json.loads(json.dumps(dataclasses.asdict(config)))
+
+
+@pytest.mark.parametrize("case", sorted(RESOLVED["resolved"]))
+def test_configs_resolve_to_the_values_they_always_had(case):
+    algo, preset, *words = case.split()
+    flags = dict(zip([w.removeprefix("--") for w in words[::2]], words[1::2], strict=True))
+    config = registry.resolve_config(algo, preset, flags)
+    name = type(config).__name__
+    want = {**RESOLVED["class_defaults"][name], **ADDED.get(name, {})}
+    assert _plain(config) == {**want, **RESOLVED["resolved"][case]}
+
+
+def test_the_cases_cover_every_algorithm_and_preset():
+    covered = {tuple(case.split()[:2]) for case in RESOLVED["resolved"]}
+    assert covered == {(a.name, p) for a in registry.ALGORITHMS.values() for p in a.presets}
+
+
+@pytest.mark.parametrize("algo", registry.ALGOS)
+def test_every_algorithm_has_a_trainer_and_a_valid_default_config(algo):
+    from adarl.train.trainers import trainer
+
+    assert callable(trainer(algo))
+    flags = {"rank": 7} if algo == "sac-fixed-rank" else {}
+    config = registry.resolve_config(algo, flags=flags)
+    assert isinstance(config, RunConfig) and config.algo == algo

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from adarl.algos import rnac
+from adarl.algos import rnac, rnac_config
 from adarl.errors import UsageError
 
 # jitted once: eager JAX compiles every primitive separately, which is slow on 2 shared cores
@@ -118,7 +118,7 @@ def test_worst_case_selection_picks_the_lowest_valued_candidate():
     ],
 )
 def test_bad_config_raises_one_line_usage_error(change, words):
-    config = dataclasses.replace(rnac.RNACConfig(), **change)
+    config = dataclasses.replace(rnac_config.RNACConfig(), **change)
     with pytest.raises(UsageError, match=words) as err:
         config.validate()
     assert "\n" not in str(err.value)
@@ -127,6 +127,6 @@ def test_bad_config_raises_one_line_usage_error(change, words):
 def test_presets_are_valid_configs():
     from adarl.algos import registry
 
-    assert registry.get("rnac").config_class is rnac.RNACConfig
-    for name, overrides in rnac.PRESETS.items():
-        rnac.RNACConfig(**overrides).validate(), name
+    assert registry.get("rnac").config_class is rnac_config.RNACConfig
+    for name, overrides in rnac_config.PRESETS.items():
+        rnac_config.RNACConfig(**overrides).validate(), name

@@ -8,15 +8,31 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from adarl.algos import SAC_FAMILY, replay, sac
+from adarl.algos import replay, sac, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.nets import mlp, rank
 from adarl.nets.regularisers import parseval_penalty
+
+
+def truncate_bottleneck(w1, w2, mask, beta: float, rule: str = "cumulative"):
+    """One rank-adaptation step on a padded bottleneck, composed of `rank`'s pieces as
+    `sac.truncate` composes them (paper appendix, "Basic Settings"): the SVD W1·W2 = U Σ Vᵀ,
+    r_new = max(1, min(r_old, r̂)), W1 = U_r √Σ_r, W2 = √Σ_r V_rᵀ. Returns `(w1, w2, mask, sigma,
+    proposed_rank)`."""
+    u, s, vt = rank.spectrum(w1, w2, mask)
+    old_rank = jnp.sum(mask).astype(jnp.int32)
+    proposed = rank.select_rank(s, beta, rule)
+    new_w1, new_w2, new_mask = rank.reparameterise(
+        u, s, vt, rank.next_rank(old_rank, proposed), w1.dtype
+    )
+    return new_w1, new_w2, new_mask, s, proposed
+
 
 OBS, ACT = 5, 2
 
 
 def make(algo="adarl", **overrides):
-    config = sac.SACConfig(
+    config = sac_config.SACConfig(
         **{
             **SAC_FAMILY[algo],
             "algo": algo,
@@ -306,7 +322,7 @@ def test_bad_config_is_a_one_line_error(bad, message):
     from adarl.errors import UsageError
 
     with pytest.raises(UsageError, match=message) as err:
-        sac.SACConfig(**bad).validate()
+        sac_config.SACConfig(**bad).validate()
     assert "\n" not in str(err.value)
 
 
@@ -340,17 +356,17 @@ def test_narrowing_bottlenecks_keeps_the_networks_function(adarl_run):
 
 def test_truncate_without_retain_test_is_the_rule_alone(adarl_run):
     """`retain_tolerance=None` (the paper's text as before the retain clause): every bottleneck
-    gets exactly `rank.truncate_bottleneck`'s factors, bit for bit."""
+    gets exactly `truncate_bottleneck`'s factors, bit for bit."""
     spec, _, state = adarl_run
     new, report = sac.truncate(spec, state)
     c = spec.config
     p, m = state["actor"]["trunk"][1], state["masks"]["actor"][1]
-    w1, w2, mask, s, proposed = rank.truncate_bottleneck(p["w1"], p["w2"], m, c.beta, c.rank_rule)
+    w1, w2, mask, s, proposed = truncate_bottleneck(p["w1"], p["w2"], m, c.beta, c.rank_rule)
     for got, want in ((new["actor"]["trunk"][1]["w1"], w1), (new["actor"]["trunk"][1]["w2"], w2)):
         np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
     np.testing.assert_array_equal(np.asarray(new["masks"]["actor"][1]), np.asarray(mask))
     q = state["critic"][1]
-    trunc = jax.vmap(lambda a, b, k: rank.truncate_bottleneck(a, b, k, c.beta, c.rank_rule))
+    trunc = jax.vmap(lambda a, b, k: truncate_bottleneck(a, b, k, c.beta, c.rank_rule))
     w1, w2, mask, _, _ = trunc(q["w1"], q["w2"], state["masks"]["critic"][1])
     np.testing.assert_array_equal(np.asarray(new["critic"][1]["w1"]), np.asarray(w1))
     np.testing.assert_array_equal(np.asarray(new["critic"][1]["w2"]), np.asarray(w2))
@@ -384,7 +400,7 @@ def test_retain_error_is_the_relative_output_change_on_replay_rows(adarl_run):
 
     actor = state["actor"]
     p, m = actor["trunk"][1], state["masks"]["actor"][1]
-    w1, w2, mask, _, _ = rank.truncate_bottleneck(p["w1"], p["w2"], m, c.beta, c.rank_rule)
+    w1, w2, mask, _, _ = truncate_bottleneck(p["w1"], p["w2"], m, c.beta, c.rank_rule)
     ref = det_action(dict(actor, trunk=masked(actor["trunk"], state["masks"]["actor"])))
     trial_trunk = list(actor["trunk"])
     trial_trunk[1] = dict(p, w1=w1, w2=w2)
@@ -395,7 +411,7 @@ def test_retain_error_is_the_relative_output_change_on_replay_rows(adarl_run):
 
     critic = masked(list(state["critic"]), state["masks"]["critic"])
     q = state["critic"][1]
-    trunc = jax.vmap(lambda a, b, k: rank.truncate_bottleneck(a, b, k, c.beta, c.rank_rule))
+    trunc = jax.vmap(lambda a, b, k: truncate_bottleneck(a, b, k, c.beta, c.rank_rule))
     w1, w2, mask, _, _ = trunc(q["w1"], q["w2"], state["masks"]["critic"][1])
     trial_critic = list(state["critic"])
     trial_critic[1] = dict(q, w1=w1, w2=w2)

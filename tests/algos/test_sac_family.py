@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from adarl.algos import SAC_FAMILY, sac
+from adarl.algos import sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.runs.logs import read_csv
 from adarl.train import sac_learner
 
@@ -26,7 +27,7 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
     # run's schedule is shorter
     values = {
         **SAC_FAMILY[algo],
-        **sac.PRESETS["smoke"],
+        **sac_config.PRESETS["smoke"],
         "algo": algo,
         "task": "hopper",
         "seeds": (0, 1),
@@ -38,7 +39,7 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
         "log_every": 100,
         **ALGOS[algo],
     }
-    config = sac.SACConfig(**values)
+    config = sac_config.SACConfig(**values)
     original = sac_learner.SACLearner.env_step
 
     def crashing(self, lane, t, actions, run):
@@ -71,7 +72,7 @@ def test_runs_with_one_seed(algo, tmp_path):
     """One seed alone (sac and adarl alone are covered in tests/train/test_sac_learner.py)."""
     values = {
         **SAC_FAMILY[algo],
-        **sac.PRESETS["smoke"],
+        **sac_config.PRESETS["smoke"],
         "algo": algo,
         "task": "hopper",
         "seeds": (0,),
@@ -83,7 +84,7 @@ def test_runs_with_one_seed(algo, tmp_path):
         "log_every": 100,
         **ALGOS[algo],
     }
-    sac_learner.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
+    sac_learner.train(sac_config.SACConfig(**values), tmp_path / "run", progress=False)
     rows = read_csv(tmp_path / "run" / "train.csv")
     assert [int(r["step"]) for r in rows] == [100, 200]
     assert all(np.isfinite(float(r["loss_q"])) for r in rows)

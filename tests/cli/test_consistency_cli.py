@@ -9,6 +9,7 @@ import mujoco  # noqa: F401  (imported with this process's MUJOCO_GL, before `ad
 import pytest
 import yaml
 
+from adarl.algos import registry
 from adarl.cli.main import main
 from adarl.evaluation.synthetic import write_run
 
@@ -40,7 +41,7 @@ def test_sweep_and_evaluate_both_refuse_an_address_without_ray(tmp_path, capsys)
     assert "--address" in error_line(capsys)
 
 
-@pytest.mark.parametrize("algo", ["rnac", "sac", "adarl"])
+@pytest.mark.parametrize("algo", registry.ALGOS)
 def test_eval_episodes_zero_is_refused_by_every_algorithm(algo, tmp_path, capsys):
     out = tmp_path / "run"
     argv = ["train", "--algo", algo, "--preset", "smoke", "--eval-episodes", "0", "--out", str(out)]
@@ -49,7 +50,7 @@ def test_eval_episodes_zero_is_refused_by_every_algorithm(algo, tmp_path, capsys
     assert not out.exists()
 
 
-@pytest.mark.parametrize("algo", ["rnac", "sac"])
+@pytest.mark.parametrize("algo", registry.ALGOS)
 def test_empty_eval_dynamics_is_refused_not_a_silent_no_evaluation(algo, tmp_path, capsys):
     out = tmp_path / "run"
     argv = ["train", "--algo", algo, "--preset", "smoke", "--eval-dynamics", "", "--out", str(out)]
@@ -59,7 +60,7 @@ def test_empty_eval_dynamics_is_refused_not_a_silent_no_evaluation(algo, tmp_pat
     assert not out.exists()
 
 
-@pytest.mark.parametrize("algo", ["rnac", "sac"])
+@pytest.mark.parametrize("algo", registry.ALGOS)
 def test_seeds_given_as_a_number_in_config_yaml(algo, tmp_path, capsys):
     run_dir = tmp_path / "run"
     run_dir.mkdir()

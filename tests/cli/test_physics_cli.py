@@ -136,7 +136,7 @@ def test_resume_is_bit_exact_under_ompo_physics_and_v4_models(tmp_path, monkeypa
     # `adarl evaluate` runs the policies on the run's own physics and models (OMPO's Hopper
     # protocol, the default geometry, here on Walker2d-v4)
     units = evaluate.plan([load_run(full)], evaluate.EvalSpec(dynamics="default"))
-    assert dict(units[0].env) == {"physics": "ompo", "version": "v4"}
+    assert dict(units[0].env) == {"physics": "ompo", "model_version": "v4"}
     argv = ["evaluate", str(full), "--dynamics", "default", "--episodes", "1", "--workers", "1"]
     assert main([*argv, "--max-episode-steps", "5"]) == 0
     assert (full / "evaluations" / "default.csv").exists()

@@ -1,7 +1,10 @@
 """`adarl train` flags: config building, and one-line errors with exit code 2 for bad input."""
 
+import re
+
 import pytest
 
+from adarl.algos import registry
 from adarl.algos.flags import parse_int_list
 from adarl.cli.main import main
 from adarl.cli.train import add_arguments, build_config
@@ -93,25 +96,53 @@ def test_spec_lists_keep_fixed_dynamics_whole():
     assert split_specs("actor:1,critic:1") == ("actor:1", "critic:1")
 
 
-def test_help_lists_config_fields(capsys):
+def help_text(capsys, *argv) -> str:
     with pytest.raises(SystemExit) as exit_info:
-        main(["train", "--help"])
+        main(["train", *argv, "--help"])
     assert exit_info.value.code == 0
-    out = capsys.readouterr().out
-    for flag in (
-        "--truncate-every",
-        "--beta",
-        "--rank-rule",
-        "--parseval-coef",
-        "--uncertainty-set",
-    ):
-        assert flag in out
+    return " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize("algo", registry.ALGOS)
+def test_help_lists_the_fields_of_the_algorithm_with_its_defaults(capsys, algo):
+    """`adarl train --algo X --help`: X's config fields, each with X's default (its default
+    preset, per-task budgets aside), and no other algorithm's."""
+    import dataclasses
+
+    out = help_text(capsys, "--algo", algo)
+    entry = registry.get(algo)
+    defaults = registry.resolve_config(algo, check=False)
+    for f in dataclasses.fields(entry.config_class):
+        if f.name == "algo":
+            continue
+        value = getattr(defaults, f.name)
+        text = ",".join(map(str, value)) if isinstance(value, tuple) else str(value)
+        assert re.search(rf"--{f.name.replace('_', '-')} \S+ .*?default: {re.escape(text)}", out)
+    others = {f.name for c in registry.config_classes() for f in dataclasses.fields(c)}
+    flags = out.split("examples:")[0]
+    for name in others - registry.field_names(algo):
+        assert f"--{name.replace('_', '-')} " not in flags
+
+
+def test_help_without_algo_is_adarls_and_says_how_to_get_the_others(capsys):
+    out = help_text(capsys)
+    assert "--truncate-every" in out and "--uncertainty-set" not in out
+    assert "adarl train --algo ALGO --help" in out
+    rnac = help_text(capsys, "--algo", "rnac")
+    for flag, value in [
+        ("total-steps", 3_000_000),
+        ("eval-every", 5000),
+        ("eval-episodes", 3),
+        ("log-every", 2048),
+        ("checkpoint-every", 100_000),
+    ]:
+        assert re.search(rf"--{flag} INT [^-]*default: {value}\b", rnac), flag
 
 
 def config_for(*argv):
     import argparse
 
-    parser = argparse.ArgumentParser()
+    parser = argparse.ArgumentParser(add_help=False)
     add_arguments(parser)
     return build_config(parser.parse_args(list(argv)))[1]
 
@@ -233,8 +264,6 @@ def test_every_config_field_has_its_meaning_in_help(capsys):
     """A field's meaning is the comment next to it in its config class, shown by --help."""
     import dataclasses
 
-    from adarl.algos import registry
-
     for cls in registry.config_classes():
         meanings = registry.field_help(cls)
         missing = [f.name for f in dataclasses.fields(cls) if not meanings.get(f.name)]
@@ -242,13 +271,13 @@ def test_every_config_field_has_its_meaning_in_help(capsys):
     assert registry.field_help(registry.get("sac").config_class)["buffer_size"] == (
         "replay buffer capacity per seed (transitions)"
     )
-    with pytest.raises(SystemExit):
-        main(["train", "--help"])
-    out = " ".join(capsys.readouterr().out.split())
+    out = help_text(capsys)
     assert (
         "--buffer-size INT replay buffer capacity per seed (transitions); default: 1000000" in out
     )
-    assert "--clip-eps FLOAT PPO's clip range ε; default: 0.2" in out
+    assert "--clip-eps FLOAT PPO's clip range ε; default: 0.2" in help_text(
+        capsys, "--algo", "rnac"
+    )
     # a comment block above a field is its help; a `# --- section` heading is not
     assert "--lanes INT 0: every seed is its own lane" in out
     assert "--hidden TUPLE hidden layer widths of actor and critics; default: 64,64" in out

@@ -256,7 +256,7 @@ def test_gravity_and_wind_tasks_are_the_same_under_both_physics(task):
 @pytest.mark.parametrize("task", ["hopper", "walker2d"])
 def test_ompo_at_the_defaults_is_gymnasium(task):
     """`fixed` at the defaults under ompo edits nothing: Gymnasium's env bit for bit."""
-    ours = make(task, "fixed", seed=7, physics="ompo", version="v4")
+    ours = make(task, "fixed", seed=7, physics="ompo", model_version="v4")
     plain = gymnasium.make(get_task(task, "v4").gym_id)
     o1, _ = ours.reset()
     o2, _ = plain.reset(seed=7)
@@ -276,7 +276,9 @@ def test_tasks_step_reset_and_change_dynamics(task, version):
     obs_dim = {"v5": get_task(task).obs_dim, "v4": get_task(task).v4_obs_dim}[version]
     assert get_task(task, version).obs_dim == obs_dim
     for physics in PHYSICS:
-        env = make(task, "paper", seed=0, physics=physics, version=version, max_episode_steps=5)
+        env = make(
+            task, "paper", seed=0, physics=physics, model_version=version, max_episode_steps=5
+        )
         assert env.spec.id == f"{get_task(task).gym_id[:-3]}-{version}"
         assert env.observation_space.shape == (obs_dim,)
         seen, models = [], []
@@ -301,7 +303,7 @@ def test_every_dynamics_mode_works_under_both_physics(physics):
     for kind in KINDS:
         dynamics = "fixed:torso_length=0.5" if kind == "fixed" else kind
         for version in VERSIONS:
-            env = make("hopper", dynamics, seed=1, physics=physics, version=version)
+            env = make("hopper", dynamics, seed=1, physics=physics, model_version=version)
             _, info = env.reset()
             env.step(env.action_space.sample())
             torso = env.unwrapped.model.geom_size[1][1]
@@ -312,7 +314,7 @@ def test_every_dynamics_mode_works_under_both_physics(physics):
 def test_walker2d_v4_keeps_its_feet_frictions():
     """Walker2d-v4's right foot has friction 0.9 (v5: 1.9); both physics keep the model's own."""
     for physics in PHYSICS:
-        env = make("walker2d", "paper", physics=physics, version="v4")
+        env = make("walker2d", "paper", physics=physics, model_version="v4")
         env.reset()
         model = env.unwrapped.model
         frictions = [
@@ -335,10 +337,10 @@ def test_default_dynamics_evaluates_every_task(task):
                 seed=5,
                 max_steps=3,
                 physics=physics,
-                version=version,
+                model_version=version,
             )
             assert rows[0]["length"] == 3
-    env = make(task, "default", physics="ompo", version="v4")
+    env = make(task, "default", physics="ompo", model_version="v4")
     env.reset()
     reference = gymnasium_model(task, "v4")
     for field in ("body_pos", "geom_size", "body_mass"):
@@ -351,13 +353,13 @@ def test_default_dynamics_evaluates_every_task(task):
     [("hopper", "ompo", 30), ("walker2d", "uniform", 25), ("ant", "paper", 20)],
 )
 def test_state_round_trip_is_bit_exact_under_ompo_and_v4(task, dynamics, warmup):
-    a = make(task, dynamics, seed=3, max_episode_steps=40, physics="ompo", version="v4")
+    a = make(task, dynamics, seed=3, max_episode_steps=40, physics="ompo", model_version="v4")
     a.reset()
     rollout(a, warmup, seed=1)
     state = json.loads(json.dumps(a.get_state(), default=np.ndarray.tolist))
     assert state["physics"] == "ompo" and state["model_version"] == "v4"
     # another env that already ran other episodes (its model was edited for other lengths)
-    b = make(task, dynamics, seed=11, max_episode_steps=40, physics="ompo", version="v4")
+    b = make(task, dynamics, seed=11, max_episode_steps=40, physics="ompo", model_version="v4")
     b.reset()
     rollout(b, 60, seed=4)
     b.set_state(copy.deepcopy(state))
@@ -368,9 +370,9 @@ def test_state_round_trip_is_bit_exact_under_ompo_and_v4(task, dynamics, warmup)
 
 
 def test_state_rejects_other_physics_and_version():
-    state = make("hopper", "paper", physics="ompo", version="v4").get_state()
+    state = make("hopper", "paper", physics="ompo", model_version="v4").get_state()
     with pytest.raises(UsageError, match="physics 'ompo'; allowed: 'consistent'"):
-        make("hopper", "paper", version="v4").set_state(state)
+        make("hopper", "paper", model_version="v4").set_state(state)
     with pytest.raises(UsageError, match="model_version 'v4'; allowed: 'v5'"):
         make("hopper", "paper", physics="ompo").set_state(state)
     old = make("hopper", "paper").get_state()  # states from before the switches: consistent v5
@@ -381,7 +383,7 @@ def test_state_rejects_other_physics_and_version():
 
 
 def test_make_vec_passes_physics_and_version():
-    vec = make_vec("ant", "paper", seeds=[0, 1], physics="ompo", version="v4")
+    vec = make_vec("ant", "paper", seeds=[0, 1], physics="ompo", model_version="v4")
     obs, _ = vec.reset()
     assert obs.shape == (2, 27)
     assert vec.get_attr("physics") == ("ompo", "ompo")
@@ -389,9 +391,9 @@ def test_make_vec_passes_physics_and_version():
 
 
 def test_env_options_from_configs():
-    assert env_options({"task": "hopper"}) == {"physics": "consistent", "version": "v5"}
+    assert env_options({"task": "hopper"}) == {"physics": "consistent", "model_version": "v5"}
     nested = {"run": {"physics": "ompo"}, "env": {"model_version": "v4"}}
-    assert env_options(nested) == {"physics": "ompo", "version": "v4"}
+    assert env_options(nested) == {"physics": "ompo", "model_version": "v4"}
 
 
 # ------------------------------------------------------------------ bad input
@@ -399,8 +401,8 @@ def test_env_options_from_configs():
     "kwargs, needle",
     [
         ({"physics": "newton"}, "unknown physics 'newton'; allowed: consistent, ompo"),
-        ({"version": "v3"}, "unknown model version 'v3'; allowed: v5, v4"),
-        ({"version": "V4"}, "unknown model version 'V4'"),
+        ({"model_version": "v3"}, "unknown model version 'v3'; allowed: v5, v4"),
+        ({"model_version": "V4"}, "unknown model version 'V4'"),
     ],
 )
 def test_bad_physics_or_version(kwargs, needle):
@@ -410,10 +412,10 @@ def test_bad_physics_or_version(kwargs, needle):
 
 
 def test_gym_tasks_have_no_physics_or_versions():
-    for kwargs in ({"physics": "ompo"}, {"version": "v4"}):
+    for kwargs in ({"physics": "ompo"}, {"model_version": "v4"}):
         with pytest.raises(UsageError, match="does not exist; allowed: physics 'consistent'"):
             make("gym:Pendulum-v1", "default", **kwargs)
-    make("gym:Pendulum-v1", "default", physics="consistent", version="v5").close()
+    make("gym:Pendulum-v1", "default", physics="consistent", model_version="v5").close()
     with pytest.raises(UsageError, match="unknown physics 'x'"):
         make("gym:Pendulum-v1", "default", physics="x")
     with pytest.raises(UsageError, match="unknown physics"):
@@ -434,7 +436,7 @@ def test_the_env_follows_physics_not_the_dynamics_or_version(physics, dynamics, 
     masses (read from its XML), under `consistent` the torso's capsule mass at the episode's
     torso length, whatever the dynamics are called and whichever model version."""
     default_torso = gymnasium_model("hopper", version).body("torso").mass[0]
-    env = make("hopper", dynamics, seed=2, physics=physics, version=version)
+    env = make("hopper", dynamics, seed=2, physics=physics, model_version=version)
     lengths = set()
     for _ in range(3):
         _, info = env.reset()

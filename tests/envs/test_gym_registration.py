@@ -30,7 +30,9 @@ def test_ids_registered():
 @pytest.mark.parametrize("env_id", sorted(IDS))
 def test_make_takes_make_options(env_id):
     task = IDS[env_id]
-    env = gymnasium.make(env_id, dynamics="ompo", physics="ompo", version="v4", mass_scale=1.1)
+    env = gymnasium.make(
+        env_id, dynamics="ompo", physics="ompo", model_version="v4", mass_scale=1.1
+    )
     assert isinstance(env.unwrapped, TaskEnv)
     obs, info = env.reset(seed=0)
     assert obs.shape == (get_task(task, "v4").obs_dim,)
@@ -129,7 +131,7 @@ def test_bad_parameters(call, message):
 def test_bad_make_options():
     for kwargs, message in [
         ({"physics": "exact"}, "unknown physics 'exact'"),
-        ({"version": "v3"}, "unknown model version 'v3'"),
+        ({"model_version": "v3"}, "unknown model version 'v3'"),
         ({"dynamics": "sometimes"}, "unknown dynamics 'sometimes'"),
         ({"tilt": 1.0}, "unknown hopper parameter 'tilt'"),
     ]:

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from adarl.errors import UsageError
-from adarl.evaluation.play import backend_available, check_video_path
+from adarl.evaluation.play import BACKEND_PACKAGES, check_video_path
 from adarl.evaluation.synthetic import write_run
 
 
@@ -22,6 +22,32 @@ def test_video_path_checks(tmp_path):
     with pytest.raises(UsageError, match="is a folder"):
         check_video_path(tmp_path / "d.gif")
     check_video_path(tmp_path / "out.gif")
+
+
+def backend_available(backend: str = "egl") -> tuple[bool, str]:
+    """Whether MuJoCo can render offscreen with `backend`, checked in a subprocess (the backend is
+    fixed at import time). Returns (ok, reason)."""
+    code = (
+        "import mujoco\n"
+        "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/></worldbody></mujoco>')\n"
+        "r = mujoco.Renderer(m, 16, 16); r.update_scene(mujoco.MjData(m)); r.render(); print('ok')\n"
+    )
+    env = dict(
+        os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend if backend != "glfw" else ""
+    )
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60
+        )
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return False, f"{type(exc).__name__}: {exc}"
+    if done.returncode == 0 and "ok" in done.stdout:
+        return True, "ok"
+    tail = (done.stderr.strip().splitlines() or ["no output"])[-1]
+    return (
+        False,
+        f"MUJOCO_GL={backend} cannot render here ({tail[:200]}); needs {BACKEND_PACKAGES.get(backend)}",
+    )
 
 
 @pytest.fixture(scope="module")

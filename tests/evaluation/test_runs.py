@@ -54,7 +54,7 @@ def test_method_labels_tell_variants_apart():
     assert runs.method_label({"algo": "sac-sparse", "sparse_width": 256}) == "sac-sparse w=256"
     assert runs.method_label({"algo": "sac-sparse", "sparse_width": 1024}) == "sac-sparse"
     from adarl.algos.registry import DEFAULT_BETA, DEFAULT_RANK_RULE
-    from adarl.algos.sac import SACConfig
+    from adarl.algos.sac_config import SACConfig
 
     assert (DEFAULT_RANK_RULE, DEFAULT_BETA) == (SACConfig.rank_rule, SACConfig.beta)
     assert runs.method_label({"algo": "adarl", "rank_rule": "ratio", "beta": 0.1}) == (

@@ -8,6 +8,20 @@ import pytest
 from adarl.nets import rank
 
 
+def truncate_bottleneck(w1, w2, mask, beta: float, rule: str = "cumulative"):
+    """One rank-adaptation step on a padded bottleneck, composed of `rank`'s pieces as
+    `sac.truncate` composes them (paper appendix, "Basic Settings"): the SVD W1·W2 = U Σ Vᵀ,
+    r_new = max(1, min(r_old, r̂)), W1 = U_r √Σ_r, W2 = √Σ_r V_rᵀ. Returns `(w1, w2, mask, sigma,
+    proposed_rank)`."""
+    u, s, vt = rank.spectrum(w1, w2, mask)
+    old_rank = jnp.sum(mask).astype(jnp.int32)
+    proposed = rank.select_rank(s, beta, rule)
+    new_w1, new_w2, new_mask = rank.reparameterise(
+        u, s, vt, rank.next_rank(old_rank, proposed), w1.dtype
+    )
+    return new_w1, new_w2, new_mask, s, proposed
+
+
 def np_cumulative_rule(sigma, beta):
     """Paper Eq. 5 literally: max{ℓ ∈ 1..d : Σ_{i≤ℓ}σ_i / Σ_i σ_i ≤ β} (0 if the set is empty)."""
     total = sigma.sum()
@@ -95,7 +109,7 @@ def random_factors(seed, n_in=64, width=64, n_out=64, rank_=64):
 def test_truncation_is_the_best_rank_r_approximation(seed):
     w1, w2, mask = random_factors(seed)
     beta = 0.5
-    new_w1, new_w2, new_mask, sigma, proposed = rank.truncate_bottleneck(
+    new_w1, new_w2, new_mask, sigma, proposed = truncate_bottleneck(
         jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), beta
     )
     product = w1.astype(np.float64) @ w2
@@ -120,7 +134,7 @@ def test_truncation_is_the_best_rank_r_approximation(seed):
 
 def test_truncation_changes_the_function_by_at_most_the_discarded_singular_value():
     w1, w2, mask = random_factors(7)
-    new_w1, new_w2, new_mask, sigma, _ = rank.truncate_bottleneck(
+    new_w1, new_w2, new_mask, sigma, _ = truncate_bottleneck(
         jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), 0.6
     )
     r = int(new_mask.sum())
@@ -134,7 +148,7 @@ def test_truncation_changes_the_function_by_at_most_the_discarded_singular_value
 
 def test_truncation_respects_the_current_rank():
     w1, w2, mask = random_factors(3, rank_=10)
-    _, _, new_mask, sigma, proposed = rank.truncate_bottleneck(
+    _, _, new_mask, sigma, proposed = truncate_bottleneck(
         jnp.asarray(w1), jnp.asarray(w2), jnp.asarray(mask), 0.999999
     )
     assert int(new_mask.sum()) <= 10  # rank never grows
@@ -146,7 +160,7 @@ def test_truncation_vmaps_with_per_seed_ranks():
     w1 = jnp.stack([p[0] for p in parts])
     w2 = jnp.stack([p[1] for p in parts])
     mask = jnp.stack([p[2] for p in parts])
-    out = jax.vmap(lambda a, b, m: rank.truncate_bottleneck(a, b, m, 0.98))(w1, w2, mask)
+    out = jax.vmap(lambda a, b, m: truncate_bottleneck(a, b, m, 0.98))(w1, w2, mask)
     ranks = np.asarray(out[2].sum(axis=1))
     assert ranks[1] <= 20 and ranks[2] <= 5 and ranks[0] <= 64
 
@@ -215,7 +229,7 @@ def test_energy_rules_have_a_fixed_point(rule):
     w1, w2 = jnp.asarray(u[:, :16] * 1.0), jnp.asarray(np.linalg.pinv(u[:, :16]) @ w)
     mask = jnp.ones(16)
     for _ in range(3):
-        w1, w2, mask, _, _ = rank.truncate_bottleneck(w1, w2, mask, beta, rule)
+        w1, w2, mask, _, _ = truncate_bottleneck(w1, w2, mask, beta, rule)
         assert int(mask.sum()) == 4
 
 
@@ -224,7 +238,7 @@ def test_truncate_bottleneck_is_spectrum_then_reparameterise():
     w1 = jnp.asarray(rng.normal(size=(12, 8)), jnp.float32)
     w2 = jnp.asarray(rng.normal(size=(8, 10)), jnp.float32)
     mask = rank.rank_mask(6, 8)
-    a1, a2, am, s, proposed = rank.truncate_bottleneck(w1, w2, mask, 0.7)
+    a1, a2, am, s, proposed = truncate_bottleneck(w1, w2, mask, 0.7)
     u, s2, vt = rank.spectrum(w1, w2, mask)
     b1, b2, bm = rank.reparameterise(u, s2, vt, rank.next_rank(6, proposed))
     for x, y in ((a1, b1), (a2, b2), (am, bm), (s, s2)):

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from adarl.algos import registry
 from adarl.errors import UsageError
 from adarl.runs import folder
 from adarl.runs.layout import LOCK_FILE
@@ -85,13 +86,19 @@ def test_run_lock_is_released_when_its_block_ends_while_the_process_lives(tmp_pa
         again.acquire(new=False)
 
 
-@pytest.mark.parametrize("algo", ["sac", "rnac"])
+# one algorithm per config class, so per learner
+ONE_PER_TRAINER = [
+    next(a for a in registry.ALGOS if registry.get(a).config_class is cls)
+    for cls in registry.config_classes()
+]
+
+
+@pytest.mark.parametrize("algo", ONE_PER_TRAINER)
 def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, monkeypatch):
     """A trainer that raises after taking the lock (here: right after config.yaml) has released
     it by the time the exception reaches the caller, even while the caller keeps the exception
     (and so the trainer's frames) alive, as a sweep worker or a test does."""
-    from adarl.algos import SAC_FAMILY, rnac, sac
-    from adarl.train import rnac_learner, sac_learner
+    from adarl.train.trainers import trainer
 
     def crash(run_dir):
         assert lock_holder(run_dir) == str(os.getpid())  # taken by then
@@ -99,12 +106,8 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
 
     monkeypatch.setattr(folder, "write_environment", crash)
     run_dir = tmp_path / "run"
-    if algo == "sac":
-        values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
-        trainer, config = sac_learner.train, sac.SACConfig(**values)
-    else:
-        trainer, config = rnac_learner.train, rnac.RNACConfig(**rnac.PRESETS["smoke"])
+    config = registry.resolve_config(algo, "smoke", {"task": "hopper"})
     with pytest.raises(Crash) as info:
-        trainer(config, run_dir, progress=False)
+        trainer(algo)(config, run_dir, progress=False)
     assert info.traceback  # kept
     assert lock_holder(run_dir) is None

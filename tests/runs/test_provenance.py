@@ -9,7 +9,8 @@ from types import SimpleNamespace
 import pytest
 
 from adarl import __version__
-from adarl.algos import SAC_FAMILY, rnac, sac
+from adarl.algos import rnac_config, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.evaluation import report
 from adarl.runs import provenance
 from adarl.train import rnac_learner, sac_learner
@@ -116,9 +117,9 @@ def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
     monkeypatch.setattr(
         sac_learner.SACLearner, "fresh", _stop
     )  # stop right after the run is created
-    values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
     with pytest.raises(Stop):
-        sac_learner.train(sac.SACConfig(**values), tmp_path / "run", progress=False)
+        sac_learner.train(sac_config.SACConfig(**values), tmp_path / "run", progress=False)
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["jax"] == metadata.version("jax")
 
@@ -129,7 +130,7 @@ def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
     )  # stop right after the run is created
     with pytest.raises(Stop):
         rnac_learner.train(
-            rnac.RNACConfig(**rnac.PRESETS["smoke"]), tmp_path / "run", progress=False
+            rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"]), tmp_path / "run", progress=False
         )
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["mujoco"] == metadata.version("mujoco")

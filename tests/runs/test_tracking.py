@@ -113,7 +113,7 @@ def test_scalars_and_config_reach_wandb_offline(tmp_path, monkeypatch):
 
 
 def test_a_resumed_run_continues_the_same_wandb_run(tmp_path):
-    parser = argparse.ArgumentParser()
+    parser = argparse.ArgumentParser(add_help=False)
     add_arguments(parser)
     _, config = build_config(parser.parse_args(TINY))
     _, other = build_config(parser.parse_args([*TINY[:-1], "2000"]))

@@ -43,7 +43,8 @@ def test_train_seconds_adds_each_interval_over_its_rate():
     ],
 )
 def test_schedule_gives_each_unit_the_first_free_slot(durations, slots, expected):
-    assert estimate.schedule_seconds(durations, slots) == expected
+    jobs = [(str(i), float(d), None, 0.0) for i, d in enumerate(durations)]  # no forks
+    assert estimate.fork_schedule_seconds(jobs, slots) == expected
 
 
 def test_the_most_specific_measurement_gives_the_rate():

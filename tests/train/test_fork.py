@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
-from adarl.algos import SAC_FAMILY, sac
+from adarl.algos import sac, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.runs import checkpoints
 from adarl.runs.layout import PRE_TRUNCATION, PRE_TRUNCATION_DIR
@@ -23,7 +24,7 @@ def tiny(algo="adarl", **overrides):
     """Two seeds, truncations at steps 550, 650 and 750 (d_t = 100 updates from step 500), a
     train.csv row every 100 steps (so the truncation at 550 falls between two rows), checkpoints
     every 200 steps of which one is kept."""
-    values = {**SAC_FAMILY[algo], **sac.PRESETS["smoke"], "algo": algo, "task": "hopper"}
+    values = {**SAC_FAMILY[algo], **sac_config.PRESETS["smoke"], "algo": algo, "task": "hopper"}
     values.update(
         seeds=(0, 1),
         total_steps=800,
@@ -35,7 +36,7 @@ def tiny(algo="adarl", **overrides):
         keep_checkpoints=1,
     )
     values.update(overrides)
-    return sac.SACConfig(**values)
+    return sac_config.SACConfig(**values)
 
 
 def rows(run_dir, name):
@@ -250,7 +251,7 @@ def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkey
 
 
 def test_forkable_fields_are_config_fields_and_the_sweeps_check_agrees():
-    names = {f.name for f in sac.SACConfig.__dataclass_fields__.values()}
+    names = {f.name for f in sac_config.SACConfig.__dataclass_fields__.values()}
     assert set(fork.FORKABLE) <= names
     base = tiny()
     changed = fork.check_forkable(base, tiny("adarl-control", apply_cuts=False, eval_every=200))

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 import yaml
 
-from adarl.algos import SAC_FAMILY, rnac, sac
+from adarl.algos import rnac_config, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.cli.main import main
 from adarl.runs import checkpoints
 from adarl.runs.layout import LOCK_FILE
@@ -64,8 +65,8 @@ def snapshot(run_dir: Path) -> dict:
 @pytest.fixture(scope="module")
 def sac_run(tmp_path_factory) -> Path:
     """A finished two-seed SAC smoke run with checkpoints at steps 500 and 1000."""
-    values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
-    config = sac.SACConfig(
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    config = sac_config.SACConfig(
         **{**values, "seeds": (0, 1), "total_steps": 1000, "checkpoint_every": 500}
     )
     run_dir = tmp_path_factory.mktemp("sac") / "run"
@@ -207,8 +208,8 @@ def test_rnac_divergence_stops_with_exit_3(tmp_path, capsys):
 
 # ----------------------------------------------------------------------------- RNAC
 def test_rnac_falls_back_to_an_older_checkpoint_and_resumes_exactly(tmp_path, capsys):
-    config = rnac.RNACConfig(
-        **{**rnac.PRESETS["smoke"], "total_steps": 512, "checkpoint_every": 256}
+    config = rnac_config.RNACConfig(
+        **{**rnac_config.PRESETS["smoke"], "total_steps": 512, "checkpoint_every": 256}
     )
     base = tmp_path / "base"
     rnac_learner.train(config, base)

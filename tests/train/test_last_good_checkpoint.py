@@ -10,7 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from adarl.algos import SAC_FAMILY, rnac, sac
+from adarl.algos import rnac_config, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import Diverged
 from adarl.runs import checkpoints
 from adarl.train import rnac_learner, sac_learner
@@ -57,10 +58,10 @@ SAC_POISON = {  # what goes non-finite -> (how, the watch's words)
 def test_sac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     what, tmp_path, monkeypatch
 ):
-    values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
     values.update(seeds=(0, 1), total_steps=400, start_steps=100, update_after=100)
     values.update(log_every=400, eval_every=400, checkpoint_every=100)  # one log point: the end
-    config = sac.SACConfig(**values)
+    config = sac_config.SACConfig(**values)
     poison, words = SAC_POISON[what]
     original = sac_learner.SACLearner.after_update
 
@@ -101,8 +102,8 @@ RNAC_POISON = {
 def test_rnac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     what, tmp_path, monkeypatch
 ):
-    config = rnac.RNACConfig(
-        **{**rnac.PRESETS["smoke"], "seeds": (0, 1), "total_steps": 1024, "log_every": 1024}
+    config = rnac_config.RNACConfig(
+        **{**rnac_config.PRESETS["smoke"], "seeds": (0, 1), "total_steps": 1024, "log_every": 1024}
         | {"checkpoint_every": 256, "eval_every": 1024}
     )
     poison, words = RNAC_POISON[what]

@@ -6,17 +6,17 @@ import json
 import numpy as np
 import pytest
 
-from adarl.algos import rnac, sac
-from adarl.algos.registry import SAC_FAMILY
+from adarl.algos import rnac_config, sac, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.policy import to_bytes
 from adarl.runs import checkpoints
 from adarl.runs.logs import read_csv
 from adarl.train import loop, rnac_learner, sac_learner
 
 
-def sac_config(**overrides):
-    values = {**SAC_FAMILY["sac"], **sac.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
-    return sac.SACConfig(**{**values, **overrides})
+def smoke_sac(**overrides):
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    return sac_config.SACConfig(**{**values, **overrides})
 
 
 # (trainer, config, the steps of train.csv rows, of evaluations): the multiples of log_every
@@ -24,14 +24,14 @@ def sac_config(**overrides):
 CASES = {
     "sac": (
         sac_learner.train,
-        sac_config(seeds=(0, 1), total_steps=1_050, log_every=500, eval_every=500),
+        smoke_sac(seeds=(0, 1), total_steps=1_050, log_every=500, eval_every=500),
         [500, 1_000, 1_050],
         [500, 1_000, 1_050],
     ),
     "rnac": (
         rnac_learner.train,
-        rnac.RNACConfig(
-            **rnac.PRESETS["smoke"]
+        rnac_config.RNACConfig(
+            **rnac_config.PRESETS["smoke"]
             | {"seeds": (0, 1), "total_steps": 1_280, "log_every": 512, "eval_every": 1_024}
         ),
         [512, 1_024, 1_280],
@@ -66,7 +66,7 @@ def test_logs_evaluations_and_best_policies_alike_for_every_learner(name, tmp_pa
 
 
 def test_a_checkpoint_from_before_best_policies_records_where_they_begin(tmp_path):
-    spec = sac.make_spec(sac_config(), 11, 3, -np.ones(3), np.ones(3))
+    spec = sac.make_spec(smoke_sac(), 11, 3, -np.ones(3), np.ones(3))
     policies = []
     for seed in (0, 1):
         state = sac.init_state(spec, seed, with_buffer=False)

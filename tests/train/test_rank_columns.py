@@ -10,17 +10,23 @@ from collections import defaultdict
 
 import pytest
 
-from adarl.algos import SAC_FAMILY, sac
+from adarl.algos import sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.runs.logs import read_csv
 from adarl.train import sac_learner
 
 
 def smoke_config(**overrides):
-    values = {**SAC_FAMILY["adarl"], **sac.PRESETS["smoke"], "algo": "adarl", "task": "hopper"}
-    return sac.SACConfig(**{**values, **overrides})
+    values = {
+        **SAC_FAMILY["adarl"],
+        **sac_config.PRESETS["smoke"],
+        "algo": "adarl",
+        "task": "hopper",
+    }
+    return sac_config.SACConfig(**{**values, **overrides})
 
 
-def expected_truncation_steps(c: sac.SACConfig) -> list[int]:
+def expected_truncation_steps(c: sac_config.SACConfig) -> list[int]:
     """Chunk ends (every update_every steps) from update_after on run update_every gradient
     steps each; a truncation happens once truncate_every of them have run since the last."""
     steps, updates, since = [], 0, 0

@@ -11,6 +11,7 @@ from adarl.algos import registry
 from adarl.runs import checkpoints, folder
 from adarl.runs.layout import CHECKPOINT_DIR
 from adarl.runs.logs import read_csv
+from adarl.train.trainers import trainer
 
 # Each algorithm's `smoke` preset with the budgets of its own tests (tests/algos/test_sac_family.py,
 # tests/algos/test_rnac.py); the crash comes before the second checkpoint, with CSV rows written
@@ -65,7 +66,7 @@ def _final(run):
 @pytest.mark.parametrize("algo", registry.ALGOS)
 def test_killed_and_resumed_run_equals_an_uninterrupted_one(algo, tmp_path, monkeypatch):
     config = registry.resolve_config(algo, "smoke", {"task": "hopper", **BUDGETS[algo]})
-    train = registry.trainer(algo)
+    train = trainer(algo)
     train(config, tmp_path / "full", progress=False)
 
     saved = []

@@ -10,7 +10,7 @@ import jax
 import numpy as np
 import pytest
 
-from adarl.algos import rnac
+from adarl.algos import rnac, rnac_config
 from adarl.errors import UsageError
 from adarl.runs.logs import read_csv
 from adarl.train import rnac_learner
@@ -46,12 +46,16 @@ def test_state_copy_round_trip(task):
 
 
 # ----------------------------------------------------------------------------- a short run
-def _config(**kw) -> rnac.RNACConfig:
+def _config(**kw) -> rnac_config.RNACConfig:
     # the first checkpoint (640) falls inside a rollout (256 steps): its buffer is checkpointed
     base = dict(
-        rnac.PRESETS["smoke"], total_steps=1024, checkpoint_every=640, eval_every=512, log_every=256
+        rnac_config.PRESETS["smoke"],
+        total_steps=1024,
+        checkpoint_every=640,
+        eval_every=512,
+        log_every=256,
     )
-    return rnac.RNACConfig(**{**base, **kw})
+    return rnac_config.RNACConfig(**{**base, **kw})
 
 
 def _rows(run, name, seed=None):

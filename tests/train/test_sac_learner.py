@@ -12,7 +12,8 @@ import jax
 import numpy as np
 import pytest
 
-from adarl.algos import SAC_FAMILY, sac
+from adarl.algos import sac, sac_config
+from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.runs import checkpoints
 from adarl.runs.logs import read_csv
@@ -20,9 +21,9 @@ from adarl.train import sac_learner
 
 
 def smoke_config(algo="adarl", **overrides):
-    values = {**SAC_FAMILY[algo], **sac.PRESETS["smoke"], "algo": algo, "task": "hopper"}
+    values = {**SAC_FAMILY[algo], **sac_config.PRESETS["smoke"], "algo": algo, "task": "hopper"}
     values.update(overrides)
-    return sac.SACConfig(**values)
+    return sac_config.SACConfig(**values)
 
 
 def csv_rows(run_dir, name, drop=("steps_per_s",)):
@@ -38,7 +39,7 @@ def final_arrays(run_dir):
 
 def test_pendulum_learns_for_every_seed(tmp_path):
     """Learning check on a small task: every seed of a vmapped run beats −400 within 10k steps."""
-    config = sac.SACConfig(
+    config = sac_config.SACConfig(
         algo="sac",
         task="gym:Pendulum-v1",
         dynamics="default",
