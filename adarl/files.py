@@ -76,9 +76,11 @@ def fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
+# Every command checks its output paths with these two, before it writes anything (dry runs
+# too). Missing folders are fine: every command creates them, like `mkdir -p`.
 def check_writable_dir(path: str | os.PathLike, what: str = "--out") -> None:
     """A one-line UsageError unless `path` is a writable folder or can be created as one
-    (writes nothing)."""
+    (leaves nothing behind: see `probe_writable`)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise UsageError(f"{what} {path} is a file; give a folder")
@@ -86,7 +88,7 @@ def check_writable_dir(path: str | os.PathLike, what: str = "--out") -> None:
 
 
 def check_writable_file(path: str | os.PathLike, what: str = "--out") -> None:
-    """A one-line UsageError unless `path` can be written as a file (writes nothing)."""
+    """A one-line UsageError unless `path` can be written as a file (leaves nothing behind)."""
     path = Path(path)
     if path.is_dir():
         raise UsageError(f"{what} {path} is a folder; give a file name")
@@ -95,10 +97,24 @@ def check_writable_file(path: str | os.PathLike, what: str = "--out") -> None:
 
 def _check_creatable(path: Path, folder: Path, what: str) -> None:
     """`folder` (to hold `path`) exists and is writable, or its nearest existing ancestor is."""
-    probe = folder
-    while not probe.exists() and probe != probe.parent:
-        probe = probe.parent
-    if not probe.is_dir():
-        raise UsageError(f"{what} {path} cannot be written: {probe} is a file, not a folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise UsageError(f"{what} {path} cannot be written: {probe} is not writable")
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UsageError(f"{what} {path} cannot be written: {existing} is a file, not a folder")
+    why = probe_writable(existing)
+    if why is not None:
+        raise UsageError(f"{what} {path} cannot be written: {existing} is not writable ({why})")
+
+
+def probe_writable(folder: Path) -> str | None:
+    """None if a file can be created in `folder`, else the OS's reason. It creates and removes
+    a probe file: `os.access` says yes to root for folders no one can write (/proc, a read-only
+    mount)."""
+    try:
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".adarl-probe-")
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    os.close(fd)
+    os.unlink(probe)
+    return None

@@ -18,7 +18,21 @@ def test_output_folders_are_checked_before_anything_is_written(tmp_path, monkeyp
     with pytest.raises(UsageError, match="is a file, not a folder"):
         check_writable_file(afile / "x.csv")
     check_writable_dir(tmp_path / "new" / "run")  # creatable
-    assert not (tmp_path / "new").exists()
-    monkeypatch.setattr(os, "access", lambda *a, **k: False)  # as a read-only file system
-    with pytest.raises(UsageError, match="is not writable"):
-        check_writable_dir(tmp_path / "new" / "run")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]  # the probe is gone
+    monkeypatch.setattr(os, "access", lambda *a, **k: True)  # what root is told about /proc
+    with pytest.raises(UsageError, match="/proc is not writable"):
+        check_writable_dir("/proc/new/run")
+    with pytest.raises(UsageError, match="/proc is not writable"):
+        check_writable_file("/proc/p.npz")
+
+
+def test_a_read_only_folder_is_found_by_its_probe(tmp_path, monkeypatch):
+    import errno
+    import tempfile
+
+    def read_only(*args, **kwargs):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    with pytest.raises(UsageError, match=r"is not writable \(Read-only file system\)"):
+        check_writable_dir(tmp_path / "run")

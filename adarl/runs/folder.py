@@ -18,7 +18,7 @@ import yaml
 
 from adarl import __version__
 from adarl.errors import UsageError
-from adarl.files import atomic_write_text, check_writable_dir
+from adarl.files import atomic_write_text, check_writable_dir, probe_writable
 from adarl.runs.checkpoints import config_record, load_latest_intact
 from adarl.runs.layout import (
     CHECKPOINT_DIR,
@@ -153,8 +153,9 @@ def check_resume_dir(run_dir: str | os.PathLike) -> None:
     run_dir = Path(run_dir)
     if not (run_dir / CONFIG_FILE).exists():
         raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
-    if not os.access(run_dir, os.W_OK | os.X_OK):
-        raise UsageError(f"run folder {run_dir} is not writable")
+    why = probe_writable(run_dir)
+    if why is not None:
+        raise UsageError(f"run folder {run_dir} is not writable ({why})")
 
 
 def start_new(run_dir: Path, lock: RunLock, config, algo: str, command: str) -> None:
