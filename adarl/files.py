@@ -5,9 +5,10 @@ written: the lowest layer of adarl's I/O, used by the run folder (`adarl.runs`),
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -26,18 +27,45 @@ def fs_errors(path: str | os.PathLike, doing: str = "write"):
         raise RunFailed(f"cannot {doing} {where}: {exc.strerror or exc}") from exc
 
 
+# Permissions (docs/reliability.md): every file and folder adarl creates gets the mode the umask
+# gives any new one (files 0666, folders 0777, less the umask), temporary ones renamed into place
+# included; hence `temp_file` and `temp_dir` instead of tempfile's 0600 / 0700.
+def temp_file(folder: str | os.PathLike, prefix: str, suffix: str = "") -> tuple[int, str]:
+    """`(fd, path)` of a new file in `folder` with a free random name, as `tempfile.mkstemp`
+    but with the mode the umask gives (mkstemp makes 0600)."""
+    for _ in range(100):
+        name = os.path.join(folder, f"{prefix}{secrets.token_hex(6)}{suffix}")
+        try:
+            return os.open(name, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o666), name
+        except FileExistsError:
+            continue
+    raise FileExistsError(errno.EEXIST, "no free temporary file name", str(folder))
+
+
+def temp_dir(folder: str | os.PathLike, prefix: str) -> Path:
+    """A new folder in `folder` with a free random name, as `tempfile.mkdtemp` but with the
+    mode the umask gives (mkdtemp makes 0700)."""
+    for _ in range(100):
+        name = Path(folder) / f"{prefix}{secrets.token_hex(6)}"
+        try:
+            name.mkdir(0o777)
+            return name
+        except FileExistsError:
+            continue
+    raise FileExistsError(errno.EEXIST, "no free temporary folder name", str(folder))
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write `data` to `path` via a temp file in the same folder, fsync and rename."""
     path = Path(path)
     with fs_errors(path):
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        fd, tmp = temp_file(path.parent, prefix=f".{path.name}.", suffix=".tmp")
         try:
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
                 f.flush()
                 os.fsync(f.fileno())
-            os.chmod(tmp, 0o644)  # mkstemp makes 0600; outputs are ordinary readable files
             os.replace(tmp, path)
         except BaseException:
             if os.path.exists(tmp):
@@ -112,7 +140,7 @@ def probe_writable(folder: Path) -> str | None:
     a probe file: `os.access` says yes to root for folders no one can write (/proc, a read-only
     mount)."""
     try:
-        fd, probe = tempfile.mkstemp(dir=folder, prefix=".adarl-probe-")
+        fd, probe = temp_file(folder, prefix=".adarl-probe-")
     except OSError as exc:
         return exc.strerror or str(exc)
     os.close(fd)

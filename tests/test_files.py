@@ -28,11 +28,37 @@ def test_output_folders_are_checked_before_anything_is_written(tmp_path, monkeyp
 
 def test_a_read_only_folder_is_found_by_its_probe(tmp_path, monkeypatch):
     import errno
-    import tempfile
+
+    from adarl import files
 
     def read_only(*args, **kwargs):
         raise OSError(errno.EROFS, os.strerror(errno.EROFS))
 
-    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    monkeypatch.setattr(files, "temp_file", read_only)
     with pytest.raises(UsageError, match=r"is not writable \(Read-only file system\)"):
         check_writable_dir(tmp_path / "run")
+
+
+@pytest.mark.parametrize(
+    "umask, file_mode, dir_mode", [(0o077, 0o600, 0o700), (0o022, 0o644, 0o755)]
+)
+def test_every_file_and_folder_follows_the_umask(umask, file_mode, dir_mode, tmp_path, capsys):
+    from adarl.cli.main import main
+    from adarl.evaluation.synthetic import write_run
+
+    old = os.umask(umask)
+    try:  # a run folder (config, CSVs, checkpoints built in a temp folder), an export, a report
+        run = write_run(tmp_path / "runs", "r", seeds=(0,))
+        assert main(["export", str(run), "--out", str(tmp_path / "out" / "p.npz")]) == 0
+        assert main(["report", str(tmp_path / "runs"), "--out", str(tmp_path / "report"),
+                     "--bootstrap-reps", "10"]) == 0  # fmt: skip
+    finally:
+        os.umask(old)
+    capsys.readouterr()
+    made = list(tmp_path.rglob("*"))
+    assert {"arrays.npz", "policy_seed_0.npz", "config.yaml", "p.npz", "index.md"} <= {
+        p.name for p in made
+    }
+    for path in made:
+        expected = dir_mode if path.is_dir() else file_mode
+        assert path.stat().st_mode & 0o777 == expected, path

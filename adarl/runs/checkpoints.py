@@ -15,14 +15,13 @@ import json
 import os
 import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from adarl import __version__
 from adarl.errors import UsageError
-from adarl.files import fs_errors, fsync_dir, json_default
+from adarl.files import fs_errors, fsync_dir, json_default, temp_dir
 from adarl.runs.layout import (
     ARRAYS_FILE,
     CHECKPOINT_DIR,
@@ -69,9 +68,8 @@ def save_checkpoint(
     final = root / step_name(step)
     with fs_errors(final):
         root.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".tmp_{STEP_PREFIX}"))
+        tmp = temp_dir(root, prefix=f".tmp_{STEP_PREFIX}")
         try:
-            os.chmod(tmp, 0o755)  # mkdtemp makes 0700; a run folder is readable like its files
             with open(tmp / ARRAYS_FILE, "wb") as f:
                 np.savez(f, **arrays)
                 f.flush()

@@ -102,8 +102,12 @@ def test_checksum_is_stored_and_old_checkpoints_without_one_still_load(tmp_path)
 
 
 def test_checkpoint_folders_are_readable_like_the_rest_of_the_run(tmp_path):
-    path = _save(tmp_path, 100)
-    assert stat.S_IMODE(path.stat().st_mode) == 0o755
+    old = os.umask(0o022)
+    try:
+        path = _save(tmp_path, 100)
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o755  # as any folder, not mkdtemp's 0700
 
 
 def test_disk_full_during_a_checkpoint_is_one_line_and_keeps_the_previous(tmp_path, monkeypatch):
