@@ -171,7 +171,8 @@ def open_to_resume(run_dir: Path, lock: RunLock, config):
     """Take the lock of a run to resume. Returns None if the run is complete (DONE; a line on
     stderr), else its newest intact checkpoint `(path, arrays, meta)` checked against `config`
     before any damaged newer one is renamed, or `(None, None, None)` if it was killed before its
-    first one (start again; refused if its CSVs show that checkpoints were lost)."""
+    first one (start again; refused for a fork, whose first checkpoint is written last, and if
+    its CSVs show that checkpoints were lost)."""
     check_resume_dir(run_dir)
     lock.acquire(new=False)
     if (run_dir / DONE_FILE).exists():
@@ -181,6 +182,10 @@ def open_to_resume(run_dir: Path, lock: RunLock, config):
         run_dir, check=lambda path, arrays, meta: check_resume_config(run_dir, meta, config)
     )
     if loaded is None:
+        if load_config(run_dir).get("fork"):  # a fork's first checkpoint is written last
+            raise UsageError(
+                f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
+            )
         refuse_lost_checkpoints(run_dir, config)
         return None, None, None
     return loaded
