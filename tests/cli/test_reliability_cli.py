@@ -52,7 +52,9 @@ def test_out_that_is_a_file_or_not_writable_is_one_line_exit_2(algo, tmp_path, c
     assert "/proc is not writable" in err and err.count("\n") == 1
 
 
-@pytest.mark.parametrize("command", ["train", "sweep", "evaluate", "export", "play", "report"])
+@pytest.mark.parametrize(
+    "command", ["train", "sweep", "evaluate", "export", "play", "report", "theory"]
+)
 def test_an_output_root_cannot_write_is_one_line_exit_2(command, tmp_path, capsys, monkeypatch):
     from adarl.evaluation.synthetic import write_run
 
@@ -67,6 +69,7 @@ def test_an_output_root_cannot_write_is_one_line_exit_2(command, tmp_path, capsy
         "export": ["export", str(run), "--out", f"{out}.npz"],
         "play": ["play", str(run), "--video", f"{out}.gif"],
         "report": ["report", str(tmp_path / "runs"), "--out", out],
+        "theory": ["theory", "--out", out],
     }[command]
     assert main(argv) == 2
     err = capsys.readouterr().err
