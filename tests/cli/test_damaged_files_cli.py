@@ -89,7 +89,7 @@ def test_a_malformed_environment_json_is_named(text, needle, tmp_path, capsys):
     (run / "environment.json").write_text(text)
     out = tmp_path / "report"
     one_line_exit_2(["report", str(tmp_path / "runs"), "--out", str(out)], capsys, needle)
-    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["runs"]  # no report, no temporary folder
 
 
 def test_a_sweep_file_that_is_not_utf8_is_named(tmp_path, capsys):
