@@ -5,9 +5,10 @@ written: the lowest layer of adarl's I/O, used by the run folder (`adarl.runs`),
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -26,18 +27,45 @@ def fs_errors(path: str | os.PathLike, doing: str = "write"):
         raise RunFailed(f"cannot {doing} {where}: {exc.strerror or exc}") from exc
 
 
+# Permissions (docs/reliability.md): every file and folder adarl creates gets the mode the umask
+# gives any new one (files 0666, folders 0777, less the umask), temporary ones renamed into place
+# included; hence `temp_file` and `temp_dir` instead of tempfile's 0600 / 0700.
+def temp_file(folder: str | os.PathLike, prefix: str, suffix: str = "") -> tuple[int, str]:
+    """`(fd, path)` of a new file in `folder` with a free random name, as `tempfile.mkstemp`
+    but with the mode the umask gives (mkstemp makes 0600)."""
+    for _ in range(100):
+        name = os.path.join(folder, f"{prefix}{secrets.token_hex(6)}{suffix}")
+        try:
+            return os.open(name, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o666), name
+        except FileExistsError:
+            continue
+    raise FileExistsError(errno.EEXIST, "no free temporary file name", str(folder))
+
+
+def temp_dir(folder: str | os.PathLike, prefix: str) -> Path:
+    """A new folder in `folder` with a free random name, as `tempfile.mkdtemp` but with the
+    mode the umask gives (mkdtemp makes 0700)."""
+    for _ in range(100):
+        name = Path(folder) / f"{prefix}{secrets.token_hex(6)}"
+        try:
+            name.mkdir(0o777)
+            return name
+        except FileExistsError:
+            continue
+    raise FileExistsError(errno.EEXIST, "no free temporary folder name", str(folder))
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write `data` to `path` via a temp file in the same folder, fsync and rename."""
     path = Path(path)
     with fs_errors(path):
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        fd, tmp = temp_file(path.parent, prefix=f".{path.name}.", suffix=".tmp")
         try:
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
                 f.flush()
                 os.fsync(f.fileno())
-            os.chmod(tmp, 0o644)  # mkstemp makes 0600; outputs are ordinary readable files
             os.replace(tmp, path)
         except BaseException:
             if os.path.exists(tmp):
@@ -76,9 +104,11 @@ def fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
+# Every command checks its output paths with these two, before it writes anything (dry runs
+# too). Missing folders are fine: every command creates them, like `mkdir -p`.
 def check_writable_dir(path: str | os.PathLike, what: str = "--out") -> None:
     """A one-line UsageError unless `path` is a writable folder or can be created as one
-    (writes nothing)."""
+    (leaves nothing behind: see `probe_writable`)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise UsageError(f"{what} {path} is a file; give a folder")
@@ -86,7 +116,7 @@ def check_writable_dir(path: str | os.PathLike, what: str = "--out") -> None:
 
 
 def check_writable_file(path: str | os.PathLike, what: str = "--out") -> None:
-    """A one-line UsageError unless `path` can be written as a file (writes nothing)."""
+    """A one-line UsageError unless `path` can be written as a file (leaves nothing behind)."""
     path = Path(path)
     if path.is_dir():
         raise UsageError(f"{what} {path} is a folder; give a file name")
@@ -95,10 +125,24 @@ def check_writable_file(path: str | os.PathLike, what: str = "--out") -> None:
 
 def _check_creatable(path: Path, folder: Path, what: str) -> None:
     """`folder` (to hold `path`) exists and is writable, or its nearest existing ancestor is."""
-    probe = folder
-    while not probe.exists() and probe != probe.parent:
-        probe = probe.parent
-    if not probe.is_dir():
-        raise UsageError(f"{what} {path} cannot be written: {probe} is a file, not a folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise UsageError(f"{what} {path} cannot be written: {probe} is not writable")
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UsageError(f"{what} {path} cannot be written: {existing} is a file, not a folder")
+    why = probe_writable(existing)
+    if why is not None:
+        raise UsageError(f"{what} {path} cannot be written: {existing} is not writable ({why})")
+
+
+def probe_writable(folder: Path) -> str | None:
+    """None if a file can be created in `folder`, else the OS's reason. It creates and removes
+    a probe file: `os.access` says yes to root for folders no one can write (/proc, a read-only
+    mount)."""
+    try:
+        fd, probe = temp_file(folder, prefix=".adarl-probe-")
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    os.close(fd)
+    os.unlink(probe)
+    return None

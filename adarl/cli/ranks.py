@@ -37,11 +37,17 @@ def rank_table(run_dir: Path, layer: str | None = None) -> list[str]:
         rows = [r for r in rows if r["layer"] == layer]
     seeds = [int(s) for s in config["seeds"]]
     table: dict[tuple[int, str], dict[int, str]] = {}
-    for r in rows:
-        cell = f"{r['old_rank']}→{r['new_rank']}"
-        if r.get("decision") == "retained":  # runs from before the retain clause have no column
-            cell += f" (retained {r['candidate_rank']}, err {float(r['error']):.3g})"
-        table.setdefault((int(r["step"]), r["layer"]), {})[int(r["seed"])] = cell
+    for line, r in enumerate(rows, start=2):  # line 1: the header
+        try:
+            cell = f"{int(r['old_rank'])}→{int(r['new_rank'])}"
+            if r.get("decision") == "retained":  # runs before the retain clause have no column
+                cell += f" (retained {int(r['candidate_rank'])}, err {float(r['error']):.3g})"
+            table.setdefault((int(r["step"]), str(r["layer"])), {})[int(r["seed"])] = cell
+        except (KeyError, TypeError, ValueError) as exc:
+            raise UsageError(
+                f"{path} line {line} is not a truncation row ({type(exc).__name__}: {exc}); "
+                "allowed: integer step, seed and ranks (docs/run-format.md)"
+            ) from None
     header = ["step", "layer", *[f"seed {s}" for s in seeds]]
     body = [
         [str(step), name, *[cells.get(s, "") for s in seeds]]

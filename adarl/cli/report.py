@@ -74,7 +74,9 @@ def command_line(args: argparse.Namespace) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from adarl.evaluation.report import ReportOptions, build_report
+    from adarl.files import check_writable_dir
 
+    check_writable_dir(args.out)  # before reading any run
     options = ReportOptions(
         bootstrap_reps=args.bootstrap_reps,
         seed=args.seed,

@@ -102,9 +102,9 @@ def validate(args: argparse.Namespace) -> None:
             raise UsageError(
                 f"--gamma {args.gamma} is not allowed; the discount must lie in [0, 1)"
             )
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out {args.out} is not allowed; it exists and is not a folder")
+    from adarl.files import check_writable_dir
+
+    check_writable_dir(args.out)  # the same check as every command's --out
 
 
 def run(args: argparse.Namespace) -> int:

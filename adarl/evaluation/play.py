@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from adarl.errors import UsageError
+from adarl.files import temp_file
 
 BACKEND_PACKAGES = {
     "egl": "libegl1 (Debian/Ubuntu; add libgl1-mesa-dri to render without a GPU)",
@@ -176,14 +176,13 @@ def play(
         check_frame_size(env.unwrapped.model, width, height)
         stride, video_fps = frame_stride(env, fps)
         video.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=video.parent, prefix=f".{video.stem}.", suffix=video.suffix)
+        fd, tmp = temp_file(video.parent, prefix=f".{video.stem}.", suffix=video.suffix)
         os.close(fd)
         try:
             with _writer(tmp, video_fps) as append:
                 results = render_rollouts(
                     policy, env, episodes, seed, append, width, height, stride, max_steps
                 )
-            os.chmod(tmp, 0o644)  # mkstemp makes 0600; a video is an ordinary readable file
             os.replace(tmp, video)
         except BaseException:
             if os.path.exists(tmp):

@@ -35,7 +35,6 @@ import os
 import re
 import shutil
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -59,6 +58,7 @@ from adarl.evaluation.runs import (
     sort_methods,
     sort_tasks,
 )
+from adarl.files import temp_dir
 from adarl.runs import provenance
 from adarl.runs.checkpoints import checkpoint_dirs, select_checkpoint
 from adarl.runs.layout import EVAL_CSV
@@ -139,7 +139,7 @@ def build_report(
     for contrast in options.contrasts:
         contrast_groups(runs, contrast)  # a bad field or reference fails before anything is written
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.tmp-"))
+    tmp = temp_dir(out.parent, prefix=f".{out.name}.tmp-")
     try:
         write_report(runs, tmp, options, notes)
         _swap_into_place(tmp, out)
@@ -173,7 +173,7 @@ def _build_from_scores(paths, score_files, out: Path, options: ReportOptions) ->
         raise UsageError("--contrast needs run folders (their configs), not scores.csv")
     scores = pd.concat([read_scores(f) for f in score_files], ignore_index=True)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.tmp-"))
+    tmp = temp_dir(out.parent, prefix=f".{out.name}.tmp-")
     try:
         write_scores_report(scores, [str(f) for f in score_files], tmp, options)
         _swap_into_place(tmp, out)
@@ -270,7 +270,7 @@ def check_rows(runs: Sequence[Run]) -> None:
 def _swap_into_place(tmp: Path, out: Path) -> None:
     old = None
     if out.exists():
-        old = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.old-"))
+        old = temp_dir(out.parent, prefix=f".{out.name}.old-")
         os.rmdir(old)
         os.replace(out, old)
     os.replace(tmp, out)

@@ -15,14 +15,13 @@ import json
 import os
 import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from adarl import __version__
 from adarl.errors import UsageError
-from adarl.files import fs_errors, fsync_dir, json_default
+from adarl.files import fs_errors, fsync_dir, json_default, temp_dir
 from adarl.runs.layout import (
     ARRAYS_FILE,
     CHECKPOINT_DIR,
@@ -62,21 +61,21 @@ def save_checkpoint(
 ) -> Path:
     """Write `<folder>/step_<step>/` (default `checkpoints/`) atomically: a temp folder holding
     arrays.npz, the extra `files` (name -> bytes, e.g. policy files) and meta.json (written last,
-    with the sha256 of arrays.npz) is renamed into place, then older checkpoints of that folder
+    with the sha256 of arrays.npz and of every extra file) is renamed into place, then older checkpoints of that folder
     beyond `keep` go (0: none). An OSError becomes a one-line `RunFailed`; the checkpoints
     already there are left as they were."""
     root = Path(run_dir) / folder
     final = root / step_name(step)
     with fs_errors(final):
         root.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".tmp_{STEP_PREFIX}"))
+        tmp = temp_dir(root, prefix=f".tmp_{STEP_PREFIX}")
         try:
-            os.chmod(tmp, 0o755)  # mkdtemp makes 0700; a run folder is readable like its files
             with open(tmp / ARRAYS_FILE, "wb") as f:
                 np.savez(f, **arrays)
                 f.flush()
                 os.fsync(f.fileno())
-            for name, data in (files or {}).items():
+            files_ = sorted((files or {}).items())
+            for name, data in files_:
                 with open(tmp / name, "wb") as f:
                     f.write(data)
                     f.flush()
@@ -87,6 +86,7 @@ def save_checkpoint(
                 format_version=RUN_FORMAT_VERSION,
                 adarl_version=__version__,
                 arrays_sha256=file_sha256(tmp / ARRAYS_FILE),
+                files_sha256={name: hashlib.sha256(data).hexdigest() for name, data in files_},
             )
             with open(tmp / META_FILE, "w", encoding="utf-8") as f:
                 json.dump(meta, f, indent=1, sort_keys=True, default=json_default)
@@ -115,25 +115,62 @@ def file_sha256(path: str | os.PathLike) -> str:
     return digest.hexdigest()
 
 
-def load_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
-    """Read one checkpoint folder. A damaged one (unreadable meta.json or arrays.npz, or
-    arrays.npz not matching its checksum) raises `CheckpointDamaged`, another format version a
-    UsageError; both one line. Checkpoints written before checksums load without the check."""
-    path = Path(path)
+def checksums(meta: dict) -> dict[str, str]:
+    """`{file name: sha256}` of every file of a checkpoint that its meta.json covers (none for
+    checkpoints written before checksums; arrays.npz only for those written before the policy
+    files were covered)."""
+    found = dict(meta.get("files_sha256") or {})
+    if meta.get("arrays_sha256") is not None:
+        found[ARRAYS_FILE] = meta["arrays_sha256"]
+    return found
+
+
+def verify_checksums(path: Path, meta: dict, names=None) -> None:
+    """`CheckpointDamaged` naming the first file of checkpoint `path` (of `names`, default all)
+    that is missing or does not match its sha256 in meta.json."""
+    for name, expected in checksums(meta).items():
+        if names is not None and name not in names:
+            continue
+        if not (path / name).is_file():
+            raise CheckpointDamaged(
+                f"checkpoint {path} is damaged ({name}, listed in meta.json, is missing)"
+            )
+        if file_sha256(path / name) != expected:
+            raise CheckpointDamaged(
+                f"checkpoint {path} is damaged ({name} does not match its sha256 in meta.json)"
+            )
+
+
+def read_meta(path: Path) -> dict:
+    """A checkpoint's meta.json; `CheckpointDamaged` (one line) if it cannot be read."""
     try:
         meta = json.loads((path / META_FILE).read_text(encoding="utf-8"))
-        expected = meta.get("arrays_sha256")
-        if expected is not None and file_sha256(path / ARRAYS_FILE) != expected:
-            raise CheckpointDamaged(
-                f"checkpoint {path} is damaged (arrays.npz does not match its sha256 in meta.json)"
-            )
+    except (OSError, ValueError) as exc:
+        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({_reason(exc)})") from exc
+    if not isinstance(meta, dict):
+        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({META_FILE} is not an object)")
+    return meta
+
+
+def _reason(exc: BaseException) -> str:
+    return " ".join(f"{type(exc).__name__}: {exc}".split())
+
+
+def load_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
+    """Read one checkpoint folder. A damaged one (unreadable meta.json or arrays.npz, or a file
+    not matching its checksum in meta.json: arrays.npz and the policy files) raises
+    `CheckpointDamaged`, another format version a UsageError; both one line. Checkpoints written
+    before checksums load without the check."""
+    path = Path(path)
+    try:
+        meta = read_meta(path)
+        verify_checksums(path, meta)
         with np.load(path / ARRAYS_FILE, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
     except CheckpointDamaged:
         raise
     except Exception as exc:  # BadZipFile, EOFError, OSError, ValueError, …: all mean damaged
-        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
-        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({reason})") from exc
+        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({_reason(exc)})") from exc
     if meta.get("format_version") != RUN_FORMAT_VERSION:
         raise UsageError(
             f"checkpoint {path} has format version {meta.get('format_version')!r}; "
@@ -149,13 +186,14 @@ def latest_checkpoint(run_dir: str | os.PathLike) -> Path:
     return found[-1]
 
 
-def load_latest_intact(run_dir: str | os.PathLike, warn=None):
+def load_latest_intact(run_dir: str | os.PathLike, warn=None, check=None):
     """The newest checkpoint that loads: `(path, arrays, meta)`, or None if the run has none.
 
     Each damaged checkpoint is reported in one line (`warn`, default: stderr) and the next older
-    one is tried; the damaged ones newer than the one used are renamed `damaged_step_<n>` (kept
-    for inspection, never loaded again). With none intact, a one-line UsageError and nothing
-    renamed. Call it only while holding the run's lock.
+    one is tried; `check(path, arrays, meta)` (e.g. the config check of a resume) runs on the one
+    found, and only if it passes are the damaged ones newer than it renamed `damaged_step_<n>`
+    (kept for inspection, never loaded again). With none intact, a one-line UsageError and
+    nothing renamed. Call it only while holding the run's lock.
     """
     warn = warn or (lambda line: print(line, file=sys.stderr, flush=True))
     found = checkpoint_dirs(run_dir)
@@ -167,6 +205,8 @@ def load_latest_intact(run_dir: str | os.PathLike, warn=None):
             warn(f"adarl: warning: {exc}; trying the next older checkpoint")
             damaged.append(path)
             continue
+        if check is not None:
+            check(path, arrays, meta)
         for bad in damaged:
             aside = bad.with_name(DAMAGED_PREFIX + bad.name)
             with fs_errors(aside):
@@ -238,7 +278,8 @@ def select_checkpoint(run_dir: str | os.PathLike, step: int | None = None) -> Pa
 
 
 def policy_files(checkpoint: Path) -> dict[int, Path]:
-    """`{seed: policy file}` of a checkpoint folder (`policy_seed_<s>.npz`), sorted by seed."""
+    """`{seed: policy file}` of a checkpoint folder (`policy_seed_<s>.npz`), sorted by seed; a
+    one-line `CheckpointDamaged` if one does not match its sha256 in meta.json."""
     found = {}
     for p in checkpoint.iterdir():
         m = POLICY_PATTERN.match(p.name)
@@ -246,6 +287,7 @@ def policy_files(checkpoint: Path) -> dict[int, Path]:
             found[int(m.group(1))] = p
     if not found:
         raise UsageError(f"checkpoint {checkpoint} holds no policy_seed_<s>.npz file")
+    verify_checksums(checkpoint, read_meta(checkpoint), {p.name for p in found.values()})
     return dict(sorted(found.items()))
 
 

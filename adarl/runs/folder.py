@@ -8,6 +8,7 @@ Every command that reads runs (`train --resume`, `ranks`, `evaluate`, `report`, 
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import os
 import sys
@@ -17,9 +18,17 @@ import yaml
 
 from adarl import __version__
 from adarl.errors import UsageError
-from adarl.files import atomic_write_text, check_writable_dir
+from adarl.files import atomic_write_text, check_writable_dir, probe_writable
 from adarl.runs.checkpoints import config_record, load_latest_intact
-from adarl.runs.layout import CONFIG_FILE, DONE_FILE, RUN_FORMAT_VERSION
+from adarl.runs.layout import (
+    CHECKPOINT_DIR,
+    CONFIG_FILE,
+    DONE_FILE,
+    EPISODES_CSV,
+    EVAL_CSV,
+    RUN_FORMAT_VERSION,
+    TRAIN_CSV,
+)
 from adarl.runs.lock import RunLock, lock_holder, refuse_non_empty
 from adarl.runs.provenance import write_environment
 
@@ -144,8 +153,9 @@ def check_resume_dir(run_dir: str | os.PathLike) -> None:
     run_dir = Path(run_dir)
     if not (run_dir / CONFIG_FILE).exists():
         raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
-    if not os.access(run_dir, os.W_OK | os.X_OK):
-        raise UsageError(f"run folder {run_dir} is not writable")
+    why = probe_writable(run_dir)
+    if why is not None:
+        raise UsageError(f"run folder {run_dir} is not writable ({why})")
 
 
 def start_new(run_dir: Path, lock: RunLock, config, algo: str, command: str) -> None:
@@ -159,18 +169,56 @@ def start_new(run_dir: Path, lock: RunLock, config, algo: str, command: str) -> 
 
 def open_to_resume(run_dir: Path, lock: RunLock, config):
     """Take the lock of a run to resume. Returns None if the run is complete (DONE; a line on
-    stderr), else its newest intact checkpoint `(path, arrays, meta)` checked against `config`,
-    or `(None, None, None)` if it was killed before its first one (start again)."""
+    stderr), else its newest intact checkpoint `(path, arrays, meta)` checked against `config`
+    before any damaged newer one is renamed, or `(None, None, None)` if it was killed before its
+    first one (start again; refused for a fork, whose first checkpoint is written last, and if
+    its CSVs show that checkpoints were lost)."""
     check_resume_dir(run_dir)
     lock.acquire(new=False)
     if (run_dir / DONE_FILE).exists():
         print(f"run {run_dir} is already complete", file=sys.stderr)
         return None
-    loaded = load_latest_intact(run_dir)
+    loaded = load_latest_intact(
+        run_dir, check=lambda path, arrays, meta: check_resume_config(run_dir, meta, config)
+    )
     if loaded is None:
+        if load_config(run_dir).get("fork"):  # a fork's first checkpoint is written last
+            raise UsageError(
+                f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
+            )
+        refuse_lost_checkpoints(run_dir, config)
         return None, None, None
-    check_resume_config(run_dir, loaded[2], config)
     return loaded
+
+
+def refuse_lost_checkpoints(run_dir: Path, config) -> None:
+    """A run without a checkpoint restarts from step 0 and cuts its CSVs back to their headers,
+    which is right only if it was killed before its first checkpoint. CSV rows past the first
+    checkpoint's step mean checkpoints were written and are gone (a deleted `checkpoints/`):
+    a one-line UsageError instead of discarding those rows."""
+    first = min(config.checkpoint_every, config.total_steps)
+    for name in (EPISODES_CSV, TRAIN_CSV, EVAL_CSV):
+        last = last_logged_step(run_dir / name)
+        if last is not None and last > first:
+            raise UsageError(
+                f"run folder {run_dir} has no checkpoint but {name} has rows up to step {last} "
+                f"(past the first checkpoint, step {first}): its {CHECKPOINT_DIR}/ was deleted? "
+                "resuming would discard those rows; start a new run with another --out"
+            )
+
+
+def last_logged_step(path: Path) -> int | None:
+    """The largest `step` of a CSV log (None: no file or no readable row)."""
+    if not path.is_file():
+        return None
+    steps = []
+    with open(path, encoding="utf-8", errors="replace", newline="") as f:
+        for row in csv.DictReader(f):
+            try:
+                steps.append(int(float(row.get("step") or "")))
+            except ValueError:
+                continue
+    return max(steps, default=None)
 
 
 def finish(run_dir: Path, step: int) -> None:

@@ -102,8 +102,12 @@ def _fmt(v):
 
 
 def read_csv(path: str | os.PathLike) -> list[dict]:
-    """Read a run CSV, ignoring a trailing half-written line."""
-    text = Path(path).read_text(encoding="utf-8")
+    """Read a run CSV, ignoring a trailing half-written line; one-line UsageError if it is not
+    UTF-8 text."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise UsageError(f"{path} is not UTF-8 text (byte {exc.start}); is it a run log?") from None
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
     return list(csv.DictReader(io.StringIO(text)))

@@ -16,6 +16,7 @@ from importlib import metadata
 from pathlib import Path
 
 from adarl import __version__
+from adarl.errors import UsageError
 from adarl.files import atomic_write_json
 from adarl.runs.layout import ENVIRONMENT_FILE
 
@@ -53,14 +54,30 @@ def write_environment(run_dir: str | os.PathLike, extra: dict | None = None) -> 
     atomic_write_json(Path(run_dir) / ENVIRONMENT_FILE, {**environment_record(), **(extra or {})})
 
 
+#: the parts of a record that are objects (`summary` reads their keys)
+RECORD_OBJECTS = ("adarl", "python", "packages", "cpu")
+
+
 def read_environment(run_dir: str | os.PathLike) -> dict | None:
-    """A run's record, or None if it has none (runs made before it was written) or it is
-    unreadable."""
-    try:
-        record = json.loads((Path(run_dir) / ENVIRONMENT_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    """A run's record, or None if it has none (runs made before it was written). One that is
+    not a JSON object of `environment_record()`'s shape is a one-line UsageError naming it."""
+    path = Path(run_dir) / ENVIRONMENT_FILE
+    if not path.is_file():
         return None
-    return record if isinstance(record, dict) else None
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:  # ValueError: bad JSON or not UTF-8
+        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+        raise UsageError(f"{path} is unreadable ({reason}); delete it or restore it") from None
+    if not isinstance(record, dict):
+        raise UsageError(f"{path} is not a JSON object; delete it or restore it")
+    for key in RECORD_OBJECTS:
+        if record.get(key) is not None and not isinstance(record[key], dict):
+            raise UsageError(
+                f"{path} field {key!r} is {record[key]!r}; allowed: an object "
+                "(as adarl writes it); delete the file or restore it"
+            )
+    return record
 
 
 def summary(record: dict | None) -> dict[str, str]:

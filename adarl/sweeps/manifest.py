@@ -39,6 +39,18 @@ def read(out: Path) -> dict | None:
         ) from None
     if not isinstance(data, dict) or data.get("format_version") != FORMAT_VERSION:
         raise UsageError(f"{path} is not a sweep manifest of format {FORMAT_VERSION}")
+    units = data.get("units", {})
+    if not isinstance(units, dict):
+        raise UsageError(
+            f"{path} field 'units' is a {type(units).__name__}; allowed: an object of unit "
+            "records; move the file away to start the sweep's bookkeeping afresh"
+        )
+    for uid, record in units.items():
+        if not isinstance(record, dict) or record.get("status") not in STATUSES:
+            raise UsageError(
+                f"{path} unit {uid!r} is not a unit record (a status of {', '.join(STATUSES)}); "
+                "move the file away to start the sweep's bookkeeping afresh"
+            )
     return data
 
 

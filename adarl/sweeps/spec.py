@@ -116,6 +116,10 @@ def load(spec: str) -> Sweep:
         raise UsageError(f"{path} is not valid YAML{where}: {problem}") from None
     except OSError as exc:
         raise UsageError(f"cannot read {path}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise UsageError(
+            f"{path} is not UTF-8 text (byte {exc.start}); a sweep file is YAML"
+        ) from None
     source = spec if path.parent == PRESET_DIR and not Path(spec).is_file() else str(path)
     return parse(doc, source=source, default_name=path.stem)
 

@@ -110,10 +110,6 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
             if opened is None:  # complete
                 return run_dir
             path, arrays, meta = opened
-            if meta is None and folder.load_config(run_dir).get("fork"):  # written first at last
-                raise UsageError(
-                    f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
-                )
             loop = Loop(make_learner(config), run_dir, progress)
             if meta is None:  # killed before its first checkpoint: start again, nothing half-done
                 loop.learner.fresh()

@@ -53,16 +53,43 @@ def test_out_that_is_a_file_or_not_writable_is_one_line_exit_2(algo, tmp_path, c
     assert main([*argv, str(afile / "run")]) == 2
     assert "is a file, not a folder" in capsys.readouterr().err
     assert afile.read_text() == "mine\n"
-    real_access = os.access
-    monkeypatch.setattr(  # tmp_path as on a read-only file system (root ignores permissions)
-        os,
-        "access",
-        lambda p, mode, **kw: False if str(p) == str(tmp_path) else real_access(p, mode),
-    )
-    assert main([*argv, str(tmp_path / "run")]) == 2
+    # /proc: `os.access` says root may write there, but no one can create a file in it
+    assert main([*argv, "/proc/adarl-run"]) == 2
     err = capsys.readouterr().err
-    assert "is not writable" in err and err.count("\n") == 1
-    assert not (tmp_path / "run").exists()
+    assert "/proc is not writable" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "command", ["train", "sweep", "evaluate", "export", "play", "report", "theory"]
+)
+def test_an_output_root_cannot_write_is_one_line_exit_2(command, tmp_path, capsys, monkeypatch):
+    from adarl.evaluation.synthetic import write_run
+
+    monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+    run = write_run(tmp_path / "runs", "r", seeds=(0,))
+    out = "/proc/adarl-out/x"  # a missing folder under one that cannot be written
+    argv = {
+        "train": ["train", *SMOKE, "--out", out],
+        "sweep": ["sweep", "smoke", "--dry-run", "--out", out],  # a dry run too
+        "evaluate": ["evaluate", str(run), "--episodes", "1", "--out", f"{out}.csv"],
+        "export": ["export", str(run), "--out", f"{out}.npz"],
+        "play": ["play", str(run), "--video", f"{out}.gif"],
+        "report": ["report", str(tmp_path / "runs"), "--out", out],
+        "theory": ["theory", "--out", out],
+    }[command]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "cannot be written: /proc is not writable" in err and err.count("\n") == 1, err
+
+
+def test_a_missing_output_folder_is_created_and_the_probe_leaves_nothing(tmp_path):
+    from adarl.evaluation.synthetic import write_run
+
+    run = write_run(tmp_path / "runs", "r", seeds=(0,))
+    assert main(["export", str(run), "--out", str(tmp_path / "new" / "dir" / "p.npz")]) == 0
+    assert (tmp_path / "new" / "dir" / "p.npz").is_file()
+    assert not list(tmp_path.rglob(".adarl-probe-*"))  # the probe leaves nothing behind
 
 
 def test_sweep_dry_run_checks_out(tmp_path, capsys):

@@ -79,7 +79,9 @@ def test_play_renders_a_video(tmp_path, backend, suffix):
     assert frames.shape[0] >= 2 and frames.shape[1:3] == (48, 64)
     assert frames.std() > 0  # not a blank image
     assert [p.name for p in Path(tmp_path).iterdir() if p.name.startswith(".")] == []
-    assert video.stat().st_mode & 0o777 == 0o644  # like every other output, not mkstemp's 0600
+    umask = os.umask(0)
+    os.umask(umask)
+    assert video.stat().st_mode & 0o777 == 0o666 & ~umask  # as any new file, not mkstemp's 0600
 
 
 def test_play_bad_input_exits_2(tmp_path, monkeypatch, capsys):

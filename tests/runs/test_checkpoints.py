@@ -2,6 +2,7 @@
 errors, permissions."""
 
 import errno
+import hashlib
 import json
 import os
 import stat
@@ -61,6 +62,35 @@ def test_no_intact_checkpoint_is_a_clear_usage_error(tmp_path):
     assert checkpoints.load_latest_intact(tmp_path / "empty") is None  # no checkpoint at all: start
 
 
+def test_a_failed_check_of_the_intact_checkpoint_renames_nothing(tmp_path):
+    _save(tmp_path, 100)
+    _garbage(_save(tmp_path, 200) / "arrays.npz")
+
+    def config_error(path, arrays, meta):
+        raise UsageError("config.yaml field 'seeds' is edited")
+
+    with pytest.raises(UsageError, match="field 'seeds'"):
+        checkpoints.load_latest_intact(tmp_path, warn=lambda line: None, check=config_error)
+    assert len(checkpoints.checkpoint_dirs(tmp_path)) == 2  # validate first, rename after
+
+
+def test_every_file_of_a_checkpoint_is_checksummed(tmp_path):
+    policy = b"policy bytes"
+    path = checkpoints.save_checkpoint(
+        tmp_path, 100, {"w": np.zeros(2)}, {}, files={"policy_seed_0.npz": policy}
+    )
+    meta = json.loads((path / "meta.json").read_text())
+    assert meta["files_sha256"] == {"policy_seed_0.npz": hashlib.sha256(policy).hexdigest()}
+    (path / "policy_seed_0.npz").write_bytes(b"policy bytez")
+    with pytest.raises(checkpoints.CheckpointDamaged, match="policy_seed_0.npz does not match"):
+        checkpoints.load_checkpoint(path)
+    with pytest.raises(checkpoints.CheckpointDamaged, match="policy_seed_0.npz does not match"):
+        checkpoints.policy_files(path)
+    (path / "policy_seed_0.npz").unlink()
+    with pytest.raises(checkpoints.CheckpointDamaged, match="policy_seed_0.npz, listed in"):
+        checkpoints.load_checkpoint(path)
+
+
 def test_checksum_is_stored_and_old_checkpoints_without_one_still_load(tmp_path):
     path = _save(tmp_path, 100)
     meta = json.loads((path / "meta.json").read_text())
@@ -72,8 +102,12 @@ def test_checksum_is_stored_and_old_checkpoints_without_one_still_load(tmp_path)
 
 
 def test_checkpoint_folders_are_readable_like_the_rest_of_the_run(tmp_path):
-    path = _save(tmp_path, 100)
-    assert stat.S_IMODE(path.stat().st_mode) == 0o755
+    old = os.umask(0o022)
+    try:
+        path = _save(tmp_path, 100)
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o755  # as any folder, not mkdtemp's 0700
 
 
 def test_disk_full_during_a_checkpoint_is_one_line_and_keeps_the_previous(tmp_path, monkeypatch):

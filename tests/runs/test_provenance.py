@@ -11,6 +11,7 @@ import pytest
 from adarl import __version__
 from adarl.algos import rnac_config, sac_config
 from adarl.algos.sac_config import SAC_FAMILY
+from adarl.errors import UsageError
 from adarl.evaluation import report
 from adarl.runs import provenance
 from adarl.train import rnac_learner, sac_learner
@@ -64,8 +65,12 @@ def test_write_and_read(tmp_path):
     record = json.loads((tmp_path / "environment.json").read_text())
     assert provenance.read_environment(tmp_path) == record
     assert provenance.read_environment(tmp_path / "missing") is None
-    (tmp_path / "environment.json").write_text("{not json")
-    assert provenance.read_environment(tmp_path) is None
+    (tmp_path / "environment.json").write_text("{not json")  # damaged: named, not ignored
+    with pytest.raises(UsageError, match="environment.json is unreadable"):
+        provenance.read_environment(tmp_path)
+    (tmp_path / "environment.json").write_text('{"packages": ["jax"]}')
+    with pytest.raises(UsageError, match="field 'packages'"):
+        provenance.read_environment(tmp_path)
 
 
 def _record(**packages):

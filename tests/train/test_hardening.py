@@ -78,6 +78,11 @@ def sac_run(tmp_path_factory) -> Path:
     return run_dir
 
 
+def unlocked(snap: dict) -> dict:
+    """A snapshot without the lock file (taking the lock writes the PID into it)."""
+    return {name: stat for name, stat in snap.items() if name != LOCK_FILE}
+
+
 def resume(run_dir: Path) -> int:
     return main(["train", "--resume", str(run_dir), "--no-progress"])
 
@@ -130,6 +135,58 @@ def test_no_intact_checkpoint_is_exit_2(sac_run, tmp_path, capsys):
     assert resume(run_dir) == 2
     assert "no intact checkpoint" in capsys.readouterr().err.splitlines()[-1]
     assert not (run_dir / "DONE").exists()
+
+
+def test_a_config_error_aborts_the_resume_before_a_damaged_checkpoint_is_renamed(
+    sac_run, tmp_path, capsys
+):
+    run_dir = unfinished_copy(sac_run, tmp_path / "run")
+    newest = checkpoints.checkpoint_dirs(run_dir)[-1]
+    (newest / "arrays.npz").write_bytes(b"garbage")
+    doc = yaml.safe_load((run_dir / "config.yaml").read_text())
+    (run_dir / "config.yaml").write_text(yaml.safe_dump({**doc, "seeds": [0, 2]}, sort_keys=False))
+    before = snapshot(run_dir)
+    assert resume(run_dir) == 2
+    assert "field 'seeds'" in capsys.readouterr().err.splitlines()[-1]
+    assert unlocked(snapshot(run_dir)) == unlocked(before)  # the damaged one keeps its name
+    assert not list((run_dir / "checkpoints").glob("damaged_*"))
+
+
+def test_a_damaged_policy_file_is_a_damaged_checkpoint(sac_run, tmp_path, capsys):
+    run_dir = unfinished_copy(sac_run, tmp_path / "run")
+    newest = checkpoints.checkpoint_dirs(run_dir)[-1]
+    data = bytearray((newest / "policy_seed_1.npz").read_bytes())
+    data[len(data) // 2] ^= 0x01  # one flipped bit: only the checksum in meta.json sees it
+    (newest / "policy_seed_1.npz").write_bytes(bytes(data))
+    assert resume(run_dir) == 0
+    err = capsys.readouterr().err
+    assert "policy_seed_1.npz does not match its sha256" in err and err.count("\n") == 1, err
+    assert (run_dir / "checkpoints" / f"damaged_{newest.name}").is_dir()
+    assert csv_rows(run_dir, "eval.csv") == csv_rows(sac_run, "eval.csv")
+
+
+def test_resume_of_a_run_whose_checkpoints_were_deleted_is_refused(sac_run, tmp_path, capsys):
+    run_dir = unfinished_copy(sac_run, tmp_path / "run")
+    shutil.rmtree(run_dir / "checkpoints")
+    before = snapshot(run_dir)
+    assert resume(run_dir) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    last = max(int(row["step"]) for row in csv_rows(sac_run, "episodes.csv"))
+    assert f"no checkpoint but episodes.csv has rows up to step {last}" in err  # not a restart
+    assert unlocked(snapshot(run_dir)) == unlocked(before)  # the CSVs keep their rows
+
+
+def test_a_run_killed_before_its_first_checkpoint_starts_again(sac_run, tmp_path):
+    run_dir = unfinished_copy(sac_run, tmp_path / "run")
+    shutil.rmtree(run_dir / "checkpoints")
+    for name in ("episodes.csv", "train.csv", "eval.csv"):  # the rows a kill at step 500 leaves
+        header, *lines = (run_dir / name).read_text().splitlines(keepends=True)
+        kept = [line for line in lines if int(float(line.split(",")[0])) <= 500]
+        (run_dir / name).write_text(header + "".join(kept))
+    assert resume(run_dir) == 0
+    for name in ("episodes.csv", "train.csv", "eval.csv"):
+        assert csv_rows(run_dir, name) == csv_rows(sac_run, name), name
 
 
 def test_disk_full_during_a_checkpoint_is_exit_1_and_the_run_resumes(

@@ -1,0 +1,115 @@
+"""Damaged or hand-edited files that commands read back (issue 27, class 1; docs/reliability.md):
+a policy file, truncations.csv, environment.json, a sweep file, a sweep manifest. Each is one line
+on stderr naming the file, exit code 2, never a traceback."""
+
+import json
+import os
+
+import pytest
+
+from adarl.cli.main import main
+from adarl.evaluation.synthetic import write_run
+from adarl.runs import checkpoints
+
+
+@pytest.fixture
+def mujoco_env(monkeypatch):
+    # `adarl play` sets these for MuJoCo; monkeypatch restores them afterwards
+    monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+
+
+def one_line_exit_2(argv, capsys, *needles):
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.count("\n") == 1, err
+    for needle in needles:
+        assert needle in err, err
+    return err
+
+
+def _commands(run, tmp_path):
+    return {
+        "evaluate": ["evaluate", str(run), "--episodes", "1", "--out", str(tmp_path / "e.csv")],
+        "export": ["export", str(run), "--out", str(tmp_path / "p.npz")],
+        "play": ["play", str(run), "--video", str(tmp_path / "v.gif")],
+    }
+
+
+def _flip_bit(path):
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    path.write_bytes(bytes(data))
+
+
+def _truncate(path):
+    path.write_bytes(path.read_bytes()[:100])
+
+
+@pytest.mark.parametrize("command", ["evaluate", "export", "play"])
+@pytest.mark.parametrize("damage", [_flip_bit, _truncate])
+def test_a_damaged_policy_file_is_named_in_one_line(command, damage, tmp_path, capsys, mujoco_env):
+    run = write_run(tmp_path, "r", seeds=(0,))
+    policy = checkpoints.latest_checkpoint(run) / "policy_seed_0.npz"
+    damage(policy)
+    one_line_exit_2(_commands(run, tmp_path)[command], capsys, "policy_seed_0.npz", "sha256")
+    assert not (tmp_path / "p.npz").exists() and not (tmp_path / "v.gif").exists()
+
+
+@pytest.mark.parametrize("command", ["export", "play"])
+def test_a_truncated_policy_file_without_a_checksum_is_named_in_one_line(
+    command, tmp_path, capsys, mujoco_env
+):
+    run = write_run(tmp_path, "r", seeds=(0,))
+    newest = checkpoints.latest_checkpoint(run)
+    meta = json.loads((newest / "meta.json").read_text())
+    del meta["files_sha256"]  # as checkpoints were written before policy files were covered
+    (newest / "meta.json").write_text(json.dumps(meta))
+    _truncate(newest / "policy_seed_0.npz")
+    one_line_exit_2(
+        _commands(run, tmp_path)[command], capsys, f"policy file {newest / 'policy_seed_0.npz'}"
+    )
+
+
+def test_a_garbage_row_in_truncations_csv_is_named_with_its_line(tmp_path, capsys):
+    run = write_run(tmp_path, "r", algo="adarl", seeds=(0,))
+    with open(run / "truncations.csv", "a") as f:
+        f.write("garbage,,,\n")
+    lines = (run / "truncations.csv").read_text().splitlines()
+    one_line_exit_2(["ranks", str(run)], capsys, f"truncations.csv line {len(lines)}")
+
+
+@pytest.mark.parametrize(
+    "text, needle",
+    [("{not json", "is unreadable"), ("[1, 2]", "not a JSON object"), ('{"cpu": 4}', "'cpu'")],
+)
+def test_a_malformed_environment_json_is_named(text, needle, tmp_path, capsys):
+    run = write_run(tmp_path / "runs", "r", seeds=(0,))
+    (run / "environment.json").write_text(text)
+    out = tmp_path / "report"
+    one_line_exit_2(["report", str(tmp_path / "runs"), "--out", str(out)], capsys, needle)
+    assert [p.name for p in tmp_path.iterdir()] == ["runs"]  # no report, no temporary folder
+
+
+def test_a_sweep_file_that_is_not_utf8_is_named(tmp_path, capsys):
+    spec = tmp_path / "s.yaml"
+    spec.write_bytes(b"name: caf\xe9\n")
+    one_line_exit_2(
+        ["sweep", str(spec), "--dry-run", "--out", str(tmp_path / "sw")],
+        capsys,
+        f"{spec} is not UTF-8",
+    )
+
+
+@pytest.mark.parametrize(
+    "units, needle",
+    [([], "field 'units' is a list"), ({"hopper/sac": "done"}, "unit 'hopper/sac'")],
+)
+def test_a_sweep_manifest_of_the_wrong_shape_is_named(units, needle, tmp_path, capsys):
+    out = tmp_path / "sw"
+    out.mkdir()
+    (out / "manifest.json").write_text(json.dumps({"format_version": 1, "units": units}))
+    one_line_exit_2(
+        ["sweep", "smoke", "--dry-run", "--out", str(out)], capsys, "manifest.json", needle
+    )
