@@ -188,11 +188,12 @@ def test_best_checkpoint_is_kept_and_resume_exact(tmp_path):
     for key, value in _policy_arrays(forged / first / "best_policy_seed_0.npz").items():
         np.testing.assert_array_equal(kept[key], value, err_msg=key)
 
-    # a checkpoint whose best policy file is missing: one line, no resume
+    # a checkpoint whose best policy file is missing is damaged (its meta.json lists the file
+    # and its checksum): one line, no resume
     (forged / "DONE").unlink()
     shutil.rmtree(forged / last)
     (forged / first / "best_policy_seed_1.npz").unlink()
-    with pytest.raises(UsageError, match="has no best_policy_seed_1.npz") as err:
+    with pytest.raises(UsageError, match="has no intact checkpoint") as err:
         rnac_learner.train(config, forged, resume=True, progress=False)
     assert "\n" not in str(err.value)
 
