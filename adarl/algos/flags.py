@@ -49,6 +49,57 @@ def type_text(hint) -> str:
     return text.replace("typing.", "").replace("Optional[", "").replace("NoneType", "None")
 
 
+_EXPECTED = {  # what a field of each type allows, in the words of an error message
+    "int": "an integer",
+    "float": "a number",
+    "bool": "true or false",
+    "str": "text",
+    "tuple[int,...]": "a list of integers",
+    "tuple[str,...]": "a list of text items",
+}
+
+
+def field_value(name: str, value, type_text: str, where: str | None = None):
+    """`value` of the field `name` as the config holds it: text (a flag, a sweep spec) is parsed
+    by `parse_value`; anything else (a value read from YAML: config.yaml, a sweep file) must
+    already have the field's type, a list standing for a tuple. Ints stand for floats and are
+    kept as they are (an int written to config.yaml reads back an int). A one-line UsageError
+    otherwise, naming `where` (a file) and the field if given, else the flag."""
+    t = type_text.replace(" ", "")
+    optional = t.endswith("|None")
+    t = t.removesuffix("|None")
+    if isinstance(value, str):
+        try:
+            return parse_value(name, value, type_text)
+        except UsageError:
+            if where is None:
+                raise
+    elif value is None and optional:
+        return None
+    elif t.startswith("tuple[") and isinstance(value, list | tuple):
+        item = t.removeprefix("tuple[").removesuffix(",...]")
+        if all(_has_type(v, item) for v in value):
+            return tuple(value)
+    elif _has_type(value, t):
+        return value
+    allowed = _EXPECTED.get(t, t) + (" or null" if optional else "")
+    if where is None:
+        raise UsageError(f"--{name.replace('_', '-')} expects {allowed}, got {value!r}")
+    raise UsageError(f"{where} field {name!r} is {value!r}; allowed: {allowed}")
+
+
+def _has_type(value, t: str) -> bool:
+    if t == "bool":
+        return isinstance(value, bool)
+    if isinstance(value, bool):  # YAML's true is no number
+        return False
+    if t == "int":
+        return isinstance(value, int)
+    if t == "float":
+        return isinstance(value, int | float)
+    return t == "str" and isinstance(value, str)
+
+
 def parse_value(name: str, text: str, type_text: str):
     """Convert a flag's text to the field's type (`int`, `float`, `bool`, tuples, optionals)."""
     t = type_text.replace(" ", "")

@@ -24,7 +24,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from adarl.algos import rnac_config, sac_config
-from adarl.algos.flags import parse_value, type_text
+from adarl.algos.flags import field_value, type_text
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError, check_choice
 
@@ -186,9 +186,7 @@ def resolve_config(
     for name, value in dict(flags).items():
         if name not in hints:
             raise UsageError(f"--{name.replace('_', '-')} does not apply to --algo {algo}")
-        parsed[name] = (
-            parse_value(name, value, type_text(hints[name])) if isinstance(value, str) else value
-        )
+        parsed[name] = field_value(name, value, type_text(hints[name]))
     task = parsed.get("task", entry.presets[preset].get("task", cls.task))
     values.update(entry.task_defaults.get(task, {}))
     values.update(entry.presets[preset])
@@ -209,7 +207,10 @@ def config_from_record(values: dict, where: str):
             f"{where} has unknown field {unknown[0]!r}; allowed: the config fields of "
             f"--algo {algo} (adarl train --algo {algo} --help)"
         )
-    kept = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items() if k in names}
+    hints = typing.get_type_hints(entry.config_class)
+    kept = {  # each value checked as its flag would be, before validate() checks its range
+        k: field_value(k, v, type_text(hints[k]), where) for k, v in values.items() if k in names
+    }
     for name, value in entry.legacy_fields.items():
         kept.setdefault(name, value)
     return algo, entry.config_class(**kept).validate()

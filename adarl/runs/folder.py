@@ -167,17 +167,21 @@ def start_new(run_dir: Path, lock: RunLock, config, algo: str, command: str) -> 
     write_environment(run_dir)
 
 
-def open_to_resume(run_dir: Path, lock: RunLock, config):
-    """Take the lock of a run to resume. Returns None if the run is complete (DONE; a line on
-    stderr), else its newest intact checkpoint `(path, arrays, meta)` checked against `config`
-    before any damaged newer one is renamed, or `(None, None, None)` if it was killed before its
-    first one (start again; refused for a fork, whose first checkpoint is written last, and if
-    its CSVs show that checkpoints were lost)."""
+def lock_to_resume(run_dir: Path, lock: RunLock) -> bool:
+    """Take the lock of a run to resume; False (and a line on stderr) if it is complete (DONE)."""
     check_resume_dir(run_dir)
     lock.acquire(new=False)
     if (run_dir / DONE_FILE).exists():
         print(f"run {run_dir} is already complete", file=sys.stderr)
-        return None
+        return False
+    return True
+
+
+def newest_to_resume(run_dir: Path, config):
+    """The newest intact checkpoint `(path, arrays, meta)` of a locked run, checked against
+    `config` before any damaged newer one is renamed, or `(None, None, None)` if it was killed
+    before its first one (start again; refused for a fork, whose first checkpoint is written
+    last, and if its CSVs show that checkpoints were lost)."""
     loaded = load_latest_intact(
         run_dir, check=lambda path, arrays, meta: check_resume_config(run_dir, meta, config)
     )

@@ -161,7 +161,7 @@ def forked_config(algo: str, parent, changes: Mapping[str, object]):
     `parent` of an `algo` run; `changed` maps each field that differs to {from, to}. Turning
     `apply_cuts` off (on) makes an AdaRL run its control (the control AdaRL)."""
     from adarl.algos import registry
-    from adarl.algos.flags import parse_value, type_text
+    from adarl.algos.flags import field_value, type_text
 
     hints = typing.get_type_hints(type(parent))
     values = {}
@@ -175,9 +175,7 @@ def forked_config(algo: str, parent, changes: Mapping[str, object]):
                 f"{flag} cannot change at a fork: it shaped the state the fork starts from; "
                 f"fields that may change: {allowed}"
             )
-        values[name] = (
-            parse_value(name, value, type_text(hints[name])) if isinstance(value, str) else value
-        )
+        values[name] = field_value(name, value, type_text(hints[name]))
     if "apply_cuts" in values and algo in CONTROL_PAIR.values():
         values["algo"] = CONTROL_PAIR[bool(values["apply_cuts"])]
     child = dataclasses.replace(parent, **values).validate()

@@ -106,11 +106,12 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
     config.validate()
     with RunLock(run_dir) as lock:
         if resume:
-            opened = folder.open_to_resume(run_dir, lock, config)
-            if opened is None:  # complete
+            if not folder.lock_to_resume(run_dir, lock):  # complete
                 return run_dir
-            path, arrays, meta = opened
+            # the learner's checks (environments, dynamics, memory) come before any checkpoint
+            # is read, so a refusal leaves a damaged newest one under its own name
             loop = Loop(make_learner(config), run_dir, progress)
+            path, arrays, meta = folder.newest_to_resume(run_dir, config)
             if meta is None:  # killed before its first checkpoint: start again, nothing half-done
                 loop.learner.fresh()
                 loop.open_logs({name: 0 for name in loop.log_names(resuming=True)})

@@ -68,7 +68,46 @@ def test_seeds_given_as_a_number_in_config_yaml(algo, tmp_path, capsys):
     (run_dir / "config.yaml").write_text(yaml.safe_dump(config))
     assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 2
     err = error_line(capsys)
-    assert "seeds must be a list" in err and "got 0" in err and "is empty" not in err, err
+    assert "field 'seeds' is 0; allowed: a list of integers" in err and "is empty" not in err, err
+
+
+@pytest.mark.parametrize("algo", ["sac", "rnac"])
+@pytest.mark.parametrize(
+    "line, message",
+    [
+        ("total_steps: 1e4", "field 'total_steps' is '1e4'; allowed: an integer"),  # YAML: text
+        ("total_steps: 2000.5", "field 'total_steps' is 2000.5; allowed: an integer"),
+        ("total_steps: true", "field 'total_steps' is True; allowed: an integer"),
+        ("gamma: abc", "field 'gamma' is 'abc'; allowed: a number"),
+        ("hidden: 64", "field 'hidden' is 64; allowed: a list of integers"),
+        ("hidden: [64, x]", "field 'hidden' is [64, 'x']; allowed: a list of integers"),
+        ("task: 5", "field 'task' is 5; allowed: text"),
+        ("eval_every: 0", "eval-every must be > 0, got 0"),  # the range, as for --eval-every
+    ],
+)
+def test_a_hand_edited_config_yaml_value_is_checked_like_its_flag(
+    algo, line, message, tmp_path, capsys
+):
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "config.yaml").write_text(f"algo: {algo}\nformat_version: 1\n{line}\n")
+    assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 2
+    err = error_line(capsys)
+    assert message in err, err
+    assert [p.name for p in run_dir.iterdir()] == ["config.yaml"]  # nothing written
+
+
+@pytest.mark.parametrize(
+    "line", ["total_steps: '2000'", "gamma: 0.9", "gamma: 1", "seeds: [0, 1]", "lr_alpha: 3e-4"]
+)
+def test_config_yaml_values_a_flag_would_accept_are_accepted(line, tmp_path):
+    from adarl.algos import registry as reg
+
+    values = yaml.safe_load(f"algo: sac\nformat_version: 1\n{line}\n")
+    name = line.partition(":")[0]
+    _, config = reg.config_from_record(values, "config.yaml")
+    flag = reg.resolve_config("sac", flags={name: str(values[name]).strip("[]")})
+    assert getattr(config, name) == getattr(flag, name)
 
 
 def test_play_wider_than_the_framebuffer_names_the_flag_not_the_gl_backend(

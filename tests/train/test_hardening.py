@@ -152,6 +152,25 @@ def test_a_config_error_aborts_the_resume_before_a_damaged_checkpoint_is_renamed
     assert not list((run_dir / "checkpoints").glob("damaged_*"))
 
 
+def test_a_learner_error_aborts_the_resume_before_a_damaged_checkpoint_is_renamed(
+    sac_run, tmp_path, capsys
+):
+    """The learner (environments, evaluation dynamics, memory) is built before any checkpoint is
+    read: an edit a resume allows but the learner refuses changes nothing."""
+    run_dir = unfinished_copy(sac_run, tmp_path / "run")
+    newest = checkpoints.checkpoint_dirs(run_dir)[-1]
+    (newest / "arrays.npz").write_bytes(b"garbage")
+    doc = yaml.safe_load((run_dir / "config.yaml").read_text())
+    doc["eval_dynamics"] = ["nominal", "no-such-dynamics"]  # eval_dynamics may change on resume
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    before = snapshot(run_dir)
+    assert resume(run_dir) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no-such-dynamics" in err, err  # no "damaged" warning first
+    assert unlocked(snapshot(run_dir)) == unlocked(before)
+    assert not list((run_dir / "checkpoints").glob("damaged_*"))
+
+
 def test_a_damaged_policy_file_is_a_damaged_checkpoint(sac_run, tmp_path, capsys):
     run_dir = unfinished_copy(sac_run, tmp_path / "run")
     newest = checkpoints.checkpoint_dirs(run_dir)[-1]
