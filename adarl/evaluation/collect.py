@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from adarl.errors import UsageError
 from adarl.evaluation.runs import Run, config_value
 from adarl.runs.checkpoints import checkpoint_dirs, policy_files
 from adarl.runs.layout import (
@@ -28,7 +29,7 @@ from adarl.runs.layout import (
     TRUNCATIONS_CSV,
     checkpoint_step,
 )
-from adarl.runs.logs import read_csv
+from adarl.runs.logs import TEXT_COLUMNS, read_csv
 
 NOMINAL = "nominal"
 CURVE_BINS = 50
@@ -36,15 +37,30 @@ MAX_EPISODE_STEPS = 1000  # the environments' time limit (`adarl.envs.make`), `a
 
 
 def read_table(path: Path) -> pd.DataFrame:
-    """A run CSV as a DataFrame (numeric columns converted); empty if the file is missing."""
+    """A run CSV as a DataFrame, every column but the `TEXT_COLUMNS` as numbers (an empty cell:
+    NaN); empty if the file is missing. A cell that is no number: a one-line UsageError naming
+    the file, its line and column."""
     if not Path(path).is_file():
         return pd.DataFrame()
     df = pd.DataFrame(read_csv(path))
     for column in df.columns:
-        converted = pd.to_numeric(df[column], errors="coerce")
-        if converted.notna().sum() == df[column].replace("", np.nan).notna().sum():
-            df[column] = converted
+        if column in TEXT_COLUMNS:
+            continue
+        for line, text in enumerate(df[column], start=2):  # line 1: the header
+            _check_number(text, path, column, line)
+        df[column] = pd.to_numeric(df[column].replace("", np.nan))
     return df
+
+
+def _check_number(text, path: Path, column: str, line: int) -> None:
+    if text is None or text == "":  # a short row, an empty cell: NaN
+        return
+    try:
+        float(text)  # "nan" and "inf" too, as CsvLog writes non-finite values
+    except (TypeError, ValueError):
+        raise UsageError(
+            f"{path} line {line}: {column} is {text!r}, not a number; is the file damaged?"
+        ) from None
 
 
 # ----------------------------------------------------------------------------- evaluations

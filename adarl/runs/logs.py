@@ -20,6 +20,10 @@ EPISODE_COLUMNS = ["step", "seed", "episode", "return", "length"]
 EVAL_COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length"]
 
 
+# the columns of run logs and evaluation tables that hold text; every other column holds numbers
+TEXT_COLUMNS = frozenset({"dynamics", "layer", "decision"})
+
+
 def episode_columns(param_names) -> list[str]:
     return [*EPISODE_COLUMNS, *(f"p_{p}" for p in param_names)]
 

@@ -93,7 +93,10 @@ def train_seconds(rows: list[dict]) -> tuple[int, float]:
     for row in rows:
         if row["seed"] != first:
             continue
-        now, rate = int(float(row["step"])), float(row["steps_per_s"])
+        try:
+            now, rate = int(float(row["step"])), float(row["steps_per_s"])
+        except (TypeError, ValueError):  # a damaged row: an estimate goes on without it
+            continue
         if rate > 0 and math.isfinite(rate):
             seconds += (now - step) / rate
         step = now

@@ -1,5 +1,6 @@
 """Damaged or hand-edited files that commands read back (issue 27, class 1; docs/reliability.md):
-a policy file, truncations.csv, environment.json, a sweep file, a sweep manifest. Each is one line
+a policy file, a run log (truncations.csv, eval.csv, …), environment.json, a sweep file, a sweep
+manifest. Each is one line
 on stderr naming the file, exit code 2, never a traceback."""
 
 import json
@@ -78,6 +79,19 @@ def test_a_garbage_row_in_truncations_csv_is_named_with_its_line(tmp_path, capsy
         f.write("garbage,,,\n")
     lines = (run / "truncations.csv").read_text().splitlines()
     one_line_exit_2(["ranks", str(run)], capsys, f"truncations.csv line {len(lines)}")
+
+
+@pytest.mark.parametrize("log", ["eval.csv", "train.csv", "truncations.csv"])
+def test_a_garbage_row_in_a_run_log_is_named_with_its_line_by_the_report(log, tmp_path, capsys):
+    run = write_run(tmp_path / "runs", "r", algo="adarl", seeds=(0,))
+    with open(run / log, "a") as f:
+        f.write("garbage,1,2\n")
+    line = len((run / log).read_text().splitlines())
+    needle = f"{log} line {line}: step is 'garbage', not a number"
+    one_line_exit_2(
+        ["report", str(tmp_path / "runs"), "--out", str(tmp_path / "report")], capsys, needle
+    )
+    assert [p.name for p in tmp_path.iterdir()] == ["runs"]  # no report, no temporary folder
 
 
 @pytest.mark.parametrize(
