@@ -350,11 +350,17 @@ def spectra(run: Run) -> list[Spectrum]:
         m = re.match(r"^step_(\d+)\.npz$", path.name)
         if not m:
             continue
-        with np.load(path, allow_pickle=False) as z:
-            layers = {k: np.atleast_2d(z[k]) for k in z.files if k != "seeds"}
-            seeds = (
-                z["seeds"] if "seeds" in z.files else np.arange(len(next(iter(layers.values()))))
-            )
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                layers = {k: np.atleast_2d(z[k]) for k in z.files if k != "seeds"}
+                seeds = (
+                    z["seeds"]
+                    if "seeds" in z.files
+                    else np.arange(len(next(iter(layers.values()))))
+                )
+        except Exception as exc:  # BadZipFile, EOFError, ValueError, StopIteration…: damaged
+            reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+            raise UsageError(f"spectrum file {path} is damaged ({reason})") from None
         found.append(Spectrum(int(m.group(1)), layers, np.asarray(seeds)))
     return sorted(found, key=lambda s: s.step)
 

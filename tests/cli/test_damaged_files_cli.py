@@ -94,6 +94,15 @@ def test_a_garbage_row_in_a_run_log_is_named_with_its_line_by_the_report(log, tm
     assert [p.name for p in tmp_path.iterdir()] == ["runs"]  # no report, no temporary folder
 
 
+def test_a_damaged_spectrum_file_is_named_by_the_report(tmp_path, capsys):
+    run = write_run(tmp_path / "runs", "r", algo="adarl", seeds=(0,))
+    spectrum = sorted((run / "spectra").glob("*.npz"))[0]
+    _truncate(spectrum)
+    out = tmp_path / "report"
+    one_line_exit_2(["report", str(tmp_path / "runs"), "--out", str(out)], capsys, spectrum.name)
+    assert [p.name for p in tmp_path.iterdir()] == ["runs"]
+
+
 @pytest.mark.parametrize(
     "text, needle",
     [("{not json", "is unreadable"), ("[1, 2]", "not a JSON object"), ('{"cpu": 4}', "'cpu'")],
