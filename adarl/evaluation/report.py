@@ -184,11 +184,22 @@ def _build_from_scores(paths, score_files, out: Path, options: ReportOptions) ->
 
 
 def read_scores(path: Path) -> pd.DataFrame:
-    """An earlier report's scores.csv, checked for the columns a report needs."""
-    scores = pd.read_csv(path)
+    """An earlier report's scores.csv, checked for the columns a report needs and for numbers
+    in its `seed` and `score` columns (one-line UsageErrors)."""
+    try:
+        scores = pd.read_csv(path, encoding="utf-8")
+    except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+        raise UsageError(f"{path} is not a report's scores.csv ({reason})") from None
     missing = [c for c in ("task", "method", "run", "seed", "score") if c not in scores]
     if missing:
         raise UsageError(f"{path} lacks the column(s) {', '.join(missing)} of a report's scores")
+    for column in ("seed", "score"):
+        bad = pd.to_numeric(scores[column], errors="coerce").isna() & scores[column].notna()
+        if bad.any():
+            line = int(np.flatnonzero(bad)[0]) + 2  # line 1: the header
+            value = scores[column].iloc[line - 2]
+            raise UsageError(f"{path} line {line}: {column} is {value!r}, not a number")
     return scores
 
 

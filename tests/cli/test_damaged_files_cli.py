@@ -1,6 +1,6 @@
 """Damaged or hand-edited files that commands read back (issue 27, class 1; docs/reliability.md):
-a policy file, a run log (truncations.csv, eval.csv, …), environment.json, a sweep file, a sweep
-manifest. Each is one line
+a policy file, a run log (truncations.csv, eval.csv, …), a spectrum file, a report's scores.csv,
+environment.json, a sweep file, a sweep manifest. Each is one line
 on stderr naming the file, exit code 2, never a traceback."""
 
 import json
@@ -101,6 +101,26 @@ def test_a_damaged_spectrum_file_is_named_by_the_report(tmp_path, capsys):
     out = tmp_path / "report"
     one_line_exit_2(["report", str(tmp_path / "runs"), "--out", str(out)], capsys, spectrum.name)
     assert [p.name for p in tmp_path.iterdir()] == ["runs"]
+
+
+@pytest.mark.parametrize(
+    "data, needle",
+    [
+        (
+            b"task,method,run,seed,score\nhopper,sac,r,0,1\nhopper,sac,r,x,2\n",
+            "line 3: seed is 'x'",
+        ),
+        (b'task,score\n"unterminated\n', "is not a report's scores.csv (ParserError"),
+        (b"\xff\xfe", "is not a report's scores.csv (UnicodeDecodeError"),
+        (b"", "is not a report's scores.csv (EmptyDataError"),
+    ],
+)
+def test_a_damaged_scores_csv_is_named(data, needle, tmp_path, capsys):
+    scores = tmp_path / "scores.csv"
+    scores.write_bytes(data)
+    out = tmp_path / "report"
+    one_line_exit_2(["report", str(scores), "--out", str(out)], capsys, needle)
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(
