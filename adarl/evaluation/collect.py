@@ -87,8 +87,11 @@ def evaluations(run: Run) -> list[Evaluation]:
             continue
         try:
             meta = json.loads(sidecar.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
+        except (OSError, ValueError) as exc:  # dropping it would change the report silently
+            reason = " ".join(f"{type(exc).__name__}: {exc}".split())
+            raise UsageError(f"evaluation sidecar {sidecar} is unreadable ({reason})") from None
+        if not isinstance(meta, dict):
+            raise UsageError(f"evaluation sidecar {sidecar} is not a JSON object")
         table = read_table(csv_path)
         if not table.empty:
             found.append(Evaluation(csv_path.stem, meta, table))

@@ -9,7 +9,7 @@ import os
 import pytest
 
 from adarl.cli.main import main
-from adarl.evaluation.synthetic import write_run
+from adarl.evaluation.synthetic import write_run, write_sweep
 from adarl.runs import checkpoints
 
 
@@ -101,6 +101,19 @@ def test_a_damaged_spectrum_file_is_named_by_the_report(tmp_path, capsys):
     out = tmp_path / "report"
     one_line_exit_2(["report", str(tmp_path / "runs"), "--out", str(out)], capsys, spectrum.name)
     assert [p.name for p in tmp_path.iterdir()] == ["runs"]
+
+
+@pytest.mark.parametrize("text, needle", [("{bad", "is unreadable"), ("[1]", "not a JSON object")])
+def test_a_damaged_evaluation_sidecar_is_named_not_skipped(text, needle, tmp_path, capsys):
+    run = write_run(tmp_path / "runs", "r", seeds=(0,))
+    write_sweep(run, "torso_length", [0.2, 0.4])
+    sidecar = next((run / "evaluations").glob("*.json"))
+    sidecar.write_text(text)
+    out = tmp_path / "report"
+    one_line_exit_2(
+        ["report", str(tmp_path / "runs"), "--out", str(out)], capsys, sidecar.name, needle
+    )
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(
