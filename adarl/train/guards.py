@@ -22,14 +22,19 @@ def gib(nbytes: int) -> str:
     return f"{nbytes / 2**30:,.1f} GiB"
 
 
+def machine_memory() -> int | None:
+    """The machine's physical memory in bytes; None where it is not knowable."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
 def check_memory(nbytes: int, what: str, lower: str) -> None:
     """A one-line UsageError if `what` needs more bytes than the machine's physical memory;
     `lower` says what to lower (`lower --buffer-size or …`)."""
-    try:
-        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # not knowable here: do not guess
-        return
-    if nbytes > total:
+    total = machine_memory()
+    if total is not None and nbytes > total:
         raise UsageError(
             f"{what} need {gib(nbytes)} but this machine has {gib(total)} of memory; {lower}"
         )
