@@ -41,8 +41,8 @@ FORK_KEYS = ("from", "at")  # an entry's `fork`: the label of the entry it forks
 RESERVED_FIELDS = {"algo": "algos", "task": "tasks", "seeds": "seeds", "total_steps": "budget"}
 #: The most seeds a sweep file lists (its `seeds`, or an entry's; a range is counted before it is
 #: expanded) and the most units it expands to: 10,000 units of the `smoke` preset's 1,000 steps
-#: are already ~37 h on the project's 2-core machine (`adarl sweep --dry-run`), and expanding
-#: them takes ~20 s (docs/reliability.md).
+#: are already ~18 h on the project's 2-core machine (`adarl sweep --dry-run`), and expanding
+#: them takes ~10 s (docs/reliability.md).
 MAX_SEEDS = 10_000
 MAX_UNITS = 10_000
 
