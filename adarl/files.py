@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import glob
 import json
 import os
 import secrets
+import shutil
+import socket
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +56,32 @@ def temp_dir(folder: str | os.PathLike, prefix: str) -> Path:
         except FileExistsError:
             continue
     raise FileExistsError(errno.EEXIST, "no free temporary folder name", str(folder))
+
+
+def process_temp_dir(folder: str | os.PathLike, prefix: str) -> Path:
+    """`temp_dir` named `<prefix><pid>-<host>-<random>`, so that `remove_orphans` can tell one
+    whose process is gone (killed before it could remove it)."""
+    return temp_dir(folder, f"{prefix}{os.getpid()}-{socket.gethostname()}-")
+
+
+def remove_orphans(folder: str | os.PathLike, prefix: str) -> None:
+    """Remove the folders `process_temp_dir(folder, prefix)` made for processes of this host that
+    no longer run; those of live processes, or of other hosts, stay."""
+    host = socket.gethostname()
+    for path in Path(folder).glob(f"{glob.escape(prefix)}*"):
+        pid, _, rest = path.name[len(prefix) :].partition("-")
+        if pid.isdigit() and rest.rpartition("-")[0] == host and not _alive(int(pid)):
+            shutil.rmtree(path, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

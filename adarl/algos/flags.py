@@ -7,26 +7,39 @@ from __future__ import annotations
 
 from adarl.errors import UsageError
 
+#: The most numbers a list such as `0-4` may hold (`--seeds`, `--hidden`); its ranges are counted
+#: before they are expanded, so `0-100000000` costs nothing to refuse.
+MAX_LIST = 1_000_000
 
-def parse_int_list(text: str) -> tuple[int, ...]:
+
+class ListTooLong(ValueError):
+    """A list of more than `most` numbers (`count`), refused before it was expanded."""
+
+    def __init__(self, count: int, most: int):
+        super().__init__(f"{count} numbers, more than {most}")
+        self.count, self.most = count, most
+
+
+def parse_int_list(text: str, most: int = MAX_LIST) -> tuple[int, ...]:
     """'0-4' -> (0, 1, 2, 3, 4); '0,2,5' -> (0, 2, 5); ranges and lists mix ('0-2,7').
-    Raises ValueError on anything else (an empty list, a descending range, a non-number)."""
-    out: list[int] = []
+    Raises ValueError on anything else (an empty list, a descending range, a non-number), and
+    `ListTooLong` (counted, not expanded) for more than `most` numbers."""
+    ranges: list[tuple[int, int]] = []
     for part in text.split(","):
         part = part.strip()
         if not part:
             continue
         lo, dash, hi = part.partition("-")
-        if dash and lo:
-            a, b = int(lo), int(hi)
-            if b < a:
-                raise ValueError
-            out.extend(range(a, b + 1))
-        else:
-            out.append(int(part))
-    if not out:
+        a, b = (int(lo), int(hi)) if dash and lo else (int(part), int(part))
+        if b < a:
+            raise ValueError
+        ranges.append((a, b))
+    if not ranges:
         raise ValueError
-    return tuple(out)
+    count = sum(b - a + 1 for a, b in ranges)
+    if count > most:
+        raise ListTooLong(count, most)
+    return tuple(i for a, b in ranges for i in range(a, b + 1))
 
 
 def split_specs(text: str) -> tuple[str, ...]:
@@ -123,6 +136,10 @@ def parse_value(name: str, text: str, type_text: str):
             return parse_int_list(text)
         if t == "tuple[str,...]":
             return split_specs(text)
+    except ListTooLong as error:
+        raise UsageError(
+            f"{flag} {text!r} is {error.count:,} numbers; allowed: at most {error.most:,}"
+        ) from None
     except ValueError:
         raise UsageError(f"{flag} expects {t}, got {text!r}") from None
     raise UsageError(f"{flag}: unsupported field type {t}")

@@ -32,7 +32,7 @@ import optax
 
 from adarl.algos.rnac_config import RNACConfig
 from adarl.nets.gaussian import gaussian_entropy, gaussian_log_prob
-from adarl.nets.mlp import orthogonal
+from adarl.nets.mlp import make_layout, n_params, orthogonal
 
 TRAIN_COLUMNS = [
     "step",
@@ -169,6 +169,14 @@ def make_optimizer(config: RNACConfig) -> optax.GradientTransformation:
     return optax.chain(
         optax.clip_by_global_norm(config.max_grad_norm), optax.scale_by_adam(eps=config.adam_eps)
     )
+
+
+def state_bytes(config: RNACConfig, obs_dim: int, act_dim: int) -> int:
+    """Bytes of one seed's networks in `init_states` (float32): the actor (trunk, mean head,
+    log-std) and the critic, each with Adam's two moments. Counted, not built."""
+    actor = n_params(make_layout([obs_dim, *config.hidden, act_dim])) + act_dim
+    critic = n_params(make_layout([obs_dim, *config.hidden, 1]))
+    return 4 * 3 * (actor + critic)
 
 
 def init_states(seeds: list[int], config: RNACConfig, obs_dim: int, act_dim: int):

@@ -86,6 +86,16 @@ def make_spec(config: SACConfig, obs_dim: int, act_dim: int, low, high) -> Spec:
     )
 
 
+def state_bytes(spec: Spec) -> int:
+    """Bytes of one seed's networks in `init_state` (float32, buffer aside): the actor (trunk and
+    two heads) with Adam's two moments, and the two critics with their target copies and Adam's
+    moments. Counted from the layouts, without building anything."""
+    width = spec.config.sparse_width or spec.config.hidden[-1]
+    actor = mlp.n_params(spec.actor) + 2 * mlp.n_params((("dense", width, spec.act_dim),))
+    critics = 2 * mlp.n_params(spec.critic)
+    return 4 * (3 * actor + 4 * critics)
+
+
 def init_state(spec: Spec, seed: int, with_buffer: bool = True) -> dict:
     """The complete training state of one seed (parameters, optimisers, buffer, keys, counters),
     as NumPy arrays: parameters are drawn with NumPy's PCG64 seeded by `seed`; the update's JAX

@@ -14,8 +14,9 @@ face the same initial states and the same seed gives the same returns.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
@@ -55,15 +56,15 @@ class EvalSpec:
         **kwargs,
     ) -> EvalSpec:
         """Build from CLI strings: `--dynamics`, repeated `--sweep P=lo:hi:n`, `--hold P=v`."""
-        base, axes, held = grid.split_dynamics(dynamics)
-        axes += [grid.parse_axis(s) for s in sweeps]
-        held += [grid.parse_hold(h) for h in holds]
-        spec = cls(dynamics=base, axes=tuple(axes), holds=tuple(held), **kwargs)
+        spec = cls(**kwargs)
         if spec.episodes < 1:
             raise UsageError(f"--episodes must be ≥ 1, got {spec.episodes}")
         if spec.max_steps is not None and spec.max_steps < 1:
             raise UsageError(f"--max-episode-steps must be ≥ 1, got {spec.max_steps}")
-        return spec
+        base, axes, held = grid.split_dynamics(dynamics, spec.episodes)
+        axes += [grid.parse_axis(s, spec.episodes) for s in sweeps]
+        held += [grid.parse_hold(h) for h in holds]
+        return replace(spec, dynamics=base, axes=tuple(axes), holds=tuple(held))
 
     @property
     def name(self) -> str:
@@ -113,7 +114,14 @@ def check_dynamics(spec: str, task: str) -> None:
 
 
 def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
-    """All units for `runs` under `spec`, validated (checkpoints, seeds, parameters, grid)."""
+    """All units for `runs` under `spec`, validated (checkpoints, seeds, parameters, grid); the
+    episodes are counted (`grid.check_episodes`) before any grid is built."""
+    points = math.prod(len(a.values) for a in spec.axes)
+    seeds = sum(len(run.seeds) for run in runs)
+    grid.check_episodes(
+        points * seeds * spec.episodes,
+        f"{points:,} points x {seeds} seeds x {spec.episodes} episodes",
+    )
     units: list[Unit] = []
     grids: dict[str, list[dict[str, float]]] = {}
     for index, run in enumerate(runs):

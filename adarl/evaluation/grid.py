@@ -17,8 +17,28 @@ from dataclasses import dataclass
 import numpy as np
 
 from adarl.errors import UsageError
+from adarl.train.guards import check_memory
 
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+#: The most episodes one `adarl evaluate` runs (points x seeds x episodes, over all its runs),
+#: counted before any grid is built: 10⁷ episodes of up to 1,000 steps are 14 (Hopper) to 33
+#: (Humanoid) core-days at the 8,000 and 3,500 steps/s one core of the project's machine runs
+#: with a 256-256 policy (docs/reliability.md).
+MAX_EPISODES = 10_000_000
+#: Memory per episode until its run's table is written: its row as a dict and then a DataFrame
+#: row, 3.3 kB for Hopper's 10 columns (tracemalloc), rounded up.
+EPISODE_BYTES = 4096
+SPLIT = "evaluate fewer points, episodes, seeds or runs per command"
+
+
+def check_episodes(count: int, what: str) -> None:
+    """A one-line UsageError if an evaluation of `count` episodes (`what`: how they add up) is
+    more than `MAX_EPISODES` or its rows more than the machine's memory."""
+    if count > MAX_EPISODES:
+        raise UsageError(
+            f"{what} are {count:,} episodes; allowed: at most {MAX_EPISODES:,} per command; {SPLIT}"
+        )
+    check_memory(count * EPISODE_BYTES, f"{what} ({count:,} episodes)", SPLIT)
 
 
 @dataclass(frozen=True)
@@ -55,12 +75,14 @@ def _split_assignment(text: str, flag: str) -> tuple[str, str]:
     return name, rhs.strip()
 
 
-def parse_axis(text: str) -> Axis:
+def parse_axis(text: str, episodes: int = 1) -> Axis:
     """Parse one `--sweep` value.
 
     Forms: `P=lo:hi:n` (n evenly spaced values from lo to hi, both included, as numpy.linspace),
     `P=v1,v2,…` (explicit values) or `P=v` (a single value). n must be a positive integer;
-    n = 0 or an empty list is an empty grid and raises `UsageError`.
+    n = 0 or an empty list is an empty grid and raises `UsageError`, and so does an n whose
+    points at `episodes` each are more than an evaluation may run (`check_episodes`), before
+    any value is computed.
     """
     name, rhs = _split_assignment(text, "--sweep")
     what = f"--sweep {text!r}"
@@ -81,6 +103,7 @@ def parse_axis(text: str) -> Axis:
             raise UsageError(f"{what}: empty grid (0 points); use N ≥ 1")
         if n == 1 and lo != hi:
             raise UsageError(f"{what}: one point cannot span {lo:g}..{hi:g}; use N ≥ 2 or LO = HI")
+        check_episodes(n * episodes, f"{what}: {n:,} points x {episodes} episodes")
         values = tuple(_clean(v) for v in np.linspace(lo, hi, n))
     else:
         items = [item.strip() for item in rhs.split(",")]
@@ -98,7 +121,7 @@ def parse_hold(text: str) -> tuple[str, float]:
     return name, _clean(_number(rhs, f"--hold {text!r}"))
 
 
-def split_dynamics(spec: str) -> tuple[str, list[Axis], list[tuple[str, float]]]:
+def split_dynamics(spec: str, episodes: int = 1) -> tuple[str, list[Axis], list[tuple[str, float]]]:
     """Split a `--dynamics` value into a base spec, swept axes and held values.
 
     `sweep:torso_length=0.2:0.6:9,foot_length=0.39` sweeps torso_length over the nominal dynamics
@@ -118,7 +141,7 @@ def split_dynamics(spec: str) -> tuple[str, list[Axis], list[tuple[str, float]]]
         if not item:
             continue
         if ":" in item.partition("=")[2]:
-            axes.append(parse_axis(item))
+            axes.append(parse_axis(item, episodes))
         else:
             holds.append(parse_hold(item))
     if not axes:

@@ -58,14 +58,16 @@ from adarl.evaluation.runs import (
     sort_methods,
     sort_tasks,
 )
-from adarl.files import temp_dir
+from adarl.files import process_temp_dir, remove_orphans
 from adarl.runs import provenance
 from adarl.runs.checkpoints import checkpoint_dirs, select_checkpoint
 from adarl.runs.layout import EVAL_CSV
+from adarl.train.guards import check_memory
 
 REFERENCE = registry.REFERENCE
 INDEX = "index.md"
 MARKER = "<!-- adarl report -->"
+PROFILE_TAUS = np.linspace(0.0, 1.0, 101)  # the performance profiles' thresholds
 
 
 @dataclass
@@ -128,6 +130,11 @@ def build_report(
     check_output(out)
     if options.bootstrap_reps < 1:
         raise UsageError(f"--bootstrap-reps must be ≥ 1, got {options.bootstrap_reps}")
+    check_memory(  # the largest bootstrap: a performance profile's points per resample
+        stats.bootstrap_ci_bytes(options.bootstrap_reps, len(PROFILE_TAUS)),
+        f"--bootstrap-reps {options.bootstrap_reps:,} (x {len(PROFILE_TAUS)} profile points)",
+        "lower --bootstrap-reps (default 10,000)",
+    )
     if options.last_k < 1:
         raise UsageError(f"--last-k must be ≥ 1, got {options.last_k}")
     check_choice("--best-checkpoint", options.best_checkpoint, selection.BEST_CHECKPOINTS)
@@ -138,8 +145,7 @@ def build_report(
     check_rows(runs)
     for contrast in options.contrasts:
         contrast_groups(runs, contrast)  # a bad field or reference fails before anything is written
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_dir(out.parent, prefix=f".{out.name}.tmp-")
+    tmp = _temp_folder(out)
     try:
         write_report(runs, tmp, options, notes)
         _swap_into_place(tmp, out)
@@ -172,8 +178,7 @@ def _build_from_scores(paths, score_files, out: Path, options: ReportOptions) ->
     if options.contrasts:
         raise UsageError("--contrast needs run folders (their configs), not scores.csv")
     scores = pd.concat([read_scores(f) for f in score_files], ignore_index=True)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_dir(out.parent, prefix=f".{out.name}.tmp-")
+    tmp = _temp_folder(out)
     try:
         write_scores_report(scores, [str(f) for f in score_files], tmp, options)
         _swap_into_place(tmp, out)
@@ -278,10 +283,19 @@ def check_rows(runs: Sequence[Run]) -> None:
             )
 
 
+def _temp_folder(out: Path) -> Path:
+    """The folder the report is written into before it replaces `out`; first removes those a
+    report into `out` that was killed left behind (`adarl.files.remove_orphans`)."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    for kind in ("tmp", "old"):
+        remove_orphans(out.parent, f".{out.name}.{kind}-")
+    return process_temp_dir(out.parent, f".{out.name}.tmp-")
+
+
 def _swap_into_place(tmp: Path, out: Path) -> None:
     old = None
     if out.exists():
-        old = temp_dir(out.parent, prefix=f".{out.name}.old-")
+        old = process_temp_dir(out.parent, f".{out.name}.old-")
         os.rmdir(old)
         os.replace(out, old)
     os.replace(tmp, out)
@@ -1140,7 +1154,7 @@ def improvement_section(
 def profile_section(
     normalised: compare.Normalised, folder: Path, options: ReportOptions
 ) -> Section:
-    taus = np.linspace(0.0, 1.0, 101)
+    taus = PROFILE_TAUS
     conf = options.confidence
     profiles = compare.profile_estimates(
         normalised, taus, options.bootstrap_reps, conf, options.seed + 3000

@@ -278,6 +278,14 @@ def plan_suite(
     from adarl.evaluation.evaluate import plan
 
     suites = [get_suite(name, run.task, points) for run in runs]  # every run checked first
+    seeds: dict[tuple[int, int], int] = {}  # (points, episodes) -> seeds: counted, not built
+    for suite, run in zip(suites, runs):
+        key = (suite.size, suite.episodes if episodes is None else episodes)
+        seeds[key] = seeds.get(key, 0) + len(run.seeds)
+    grid.check_episodes(
+        sum(p * e * n for (p, e), n in seeds.items()),
+        " + ".join(f"{p:,} points x {n} seeds x {e} episodes" for (p, e), n in seeds.items()),
+    )
     units = []
     for index, (run, suite) in enumerate(zip(runs, suites)):
         spec = suite_spec(suite, episodes, **kwargs)

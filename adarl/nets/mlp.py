@@ -54,6 +54,16 @@ def make_layout(
     return tuple(layout)
 
 
+def n_params(layout: tuple) -> int:
+    """Number of parameters of a network of `layout` (`init_layers`'s arrays), without building it."""
+    sizes = {
+        "dense": lambda n_in, n_out: n_in * n_out + n_out,
+        "bottleneck": lambda n_in, width, n_out: n_in * width + width * n_out + n_out,
+        "sparse": lambda n: n * n,
+    }
+    return sum(sizes[kind](*dims) for kind, *dims in layout)
+
+
 def _torch_uniform(rng: np.random.Generator, shape, fan_in):
     """PyTorch nn.Linear default: U(−1/√fan_in, 1/√fan_in) (weights and biases)."""
     bound = 1.0 / np.sqrt(fan_in)

@@ -39,6 +39,12 @@ ENTRY_KEYS = ("algo", "name", "preset", "grid", "seeds", "fork")
 FORK_KEYS = ("from", "at")  # an entry's `fork`: the label of the entry it forks, and the step
 # set by the spec's own keys (tasks, seeds, budget), never by overrides
 RESERVED_FIELDS = {"algo": "algos", "task": "tasks", "seeds": "seeds", "total_steps": "budget"}
+#: The most seeds a sweep file lists (its `seeds`, or an entry's; a range is counted before it is
+#: expanded) and the most units it expands to: 10,000 units of the `smoke` preset's 1,000 steps
+#: are already ~18 h on the project's 2-core machine (`adarl sweep --dry-run`), and expanding
+#: them takes ~10 s (docs/reliability.md).
+MAX_SEEDS = 10_000
+MAX_UNITS = 10_000
 
 
 @dataclass(frozen=True)
@@ -168,6 +174,13 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
         if preset not in known:
             raise UsageError(f"{where}: unknown preset {preset!r}; allowed: {', '.join(known)}")
 
+    n_units = len(tasks) * sum(-(-len(e["seeds"] or seeds) // group) for e in entries)
+    if n_units > MAX_UNITS:
+        raise UsageError(
+            f"{where}: {n_units:,} units ({len(tasks)} task(s) x {len(entries)} algorithm "
+            f"entries x their seeds in groups of seeds_per_unit {group}); allowed: at most "
+            f"{MAX_UNITS:,} per sweep file; raise seeds_per_unit or split the sweep"
+        )
     units = []
     for task, task_overrides in tasks.items():
         for entry in entries:
@@ -349,15 +362,19 @@ def _check_field(key, allowed: set[str], where: str, algo: str | None = None) ->
 
 
 def _seeds(value, where: str) -> tuple[int, ...]:
-    from adarl.algos.flags import parse_int_list
+    from adarl.algos.flags import ListTooLong, parse_int_list
 
     if _is_int(value):
         value = [value]
     if isinstance(value, str):
         try:
-            value = list(parse_int_list(value))
+            value = list(parse_int_list(value, most=MAX_SEEDS))
+        except ListTooLong as error:
+            _too_many_seeds(error.count, value, where)
         except ValueError:
             raise UsageError(f"{where}: seeds {value!r} are not a list like 0-4 or 0,2,5") from None
+    if isinstance(value, list) and len(value) > MAX_SEEDS:
+        _too_many_seeds(len(value), f"[{value[0]!r}, ...]", where)
     if not isinstance(value, list) or not all(_is_int(s) and s >= 0 for s in value):
         raise UsageError(
             f"{where}: seeds must be integers ≥ 0 (a list, or text like 0-4), got {value!r}"
@@ -367,6 +384,13 @@ def _seeds(value, where: str) -> tuple[int, ...]:
     if len(set(value)) != len(value):
         raise UsageError(f"{where}: seeds contain duplicates: {value}")
     return tuple(value)
+
+
+def _too_many_seeds(count: int, text, where: str):
+    raise UsageError(
+        f"{where}: seeds {text!r} are {count:,} seeds; allowed: at most {MAX_SEEDS:,} per sweep "
+        "file; split the seeds over several sweep files"
+    )
 
 
 def _budget(value, tasks: dict, where: str) -> dict[str, int]:

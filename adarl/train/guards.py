@@ -1,5 +1,5 @@
-"""Checks that stop a training run with one line: replay buffers larger than the machine's
-memory (before anything is written) and training that diverged (docs/reliability.md)."""
+"""Checks that stop a training run with one line: a run larger than the machine's memory
+(before anything is written) and training that diverged (docs/reliability.md)."""
 
 from __future__ import annotations
 
@@ -12,18 +12,46 @@ import numpy as np
 from adarl.errors import ON_DIVERGENCE, Diverged, UsageError
 from adarl.runs.checkpoints import checkpoint_dirs
 
+#: Resident memory of one environment of a run, rounded up from what 100 environments made and
+#: reset in one process add to its resident set: 1.2 MB each for Hopper, 1.4 MB for Humanoid
+#: (MuJoCo's model and data; the data's arena is reserved, not touched).
+ENV_BYTES = 2 * 2**20
 
-def check_memory(nbytes: int, what: str) -> None:
-    """A one-line UsageError if `what` needs more bytes than the machine's physical memory."""
+
+def gib(nbytes: int) -> str:
+    return f"{nbytes / 2**30:,.1f} GiB"
+
+
+def machine_memory() -> int | None:
+    """The machine's physical memory in bytes; None where it is not knowable."""
     try:
-        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # not knowable here: do not guess
-        return
-    if nbytes > total:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(nbytes: int, what: str, lower: str) -> None:
+    """A one-line UsageError if `what` needs more bytes than the machine's physical memory;
+    `lower` says what to lower (`lower --buffer-size or …`)."""
+    total = machine_memory()
+    if total is not None and nbytes > total:
         raise UsageError(
-            f"{what} need {nbytes / 2**30:.1f} GiB but this machine has {total / 2**30:.1f} GiB "
-            "of memory; lower --buffer-size or train fewer seeds per run"
+            f"{what} need {gib(nbytes)} but this machine has {gib(total)} of memory; {lower}"
         )
+
+
+def check_training_memory(n_seeds: int, buffers: int, networks: int, lower: str) -> None:
+    """The one memory check of a training run, made before its networks and all environments
+    but the first exist: `buffers` (replay or rollout) and `networks` (parameters, target copies
+    and Adam's moments, float32), in bytes over all seeds, and `ENV_BYTES` per seed's
+    environment. A floor: what training adds (gradients, host copies, checkpoints) is left out."""
+    envs = n_seeds * ENV_BYTES
+    check_memory(
+        buffers + networks + envs,
+        f"{n_seeds} seed{'s' * (n_seeds > 1)} (buffers {gib(buffers)}, networks {gib(networks)}, "
+        f"environments {gib(envs)})",
+        lower,
+    )
 
 
 class DivergenceWatch:

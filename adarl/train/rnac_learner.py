@@ -31,12 +31,14 @@ from adarl.algos.rnac import (
     policy_arrays,
     sample_action,
     select_candidate,
+    state_bytes,
     welford,
 )
 from adarl.algos.rnac_config import RNACConfig
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec
 from adarl.train import loop
+from adarl.train.guards import check_training_memory
 
 
 # ============================================================================ double sampling
@@ -149,6 +151,12 @@ class Host:
             buf_done=np.zeros((n_seeds, t), f32),
         )
 
+    @staticmethod
+    def rollout_bytes(obs_dim: int, act_dim: int, t: int) -> int:
+        """Bytes of one seed's rollout in `zeros` (float32 `buf_*`: two observations, the action
+        and four scalars per step)."""
+        return 4 * t * (2 * obs_dim + act_dim + 4)
+
     def obs_var(self, i: int) -> np.ndarray:
         return self.obs_m2[i] / self.obs_count[i] if self.obs_count[i] > 0 else self.obs_m2[i] * 0
 
@@ -199,15 +207,26 @@ class RNACLearner:
         self.env_options = config.env_options()
         for spec in config.eval_dynamics:  # checked now, not at the first evaluation
             envs.parse_dynamics(spec, config.task)
-        self.envs = [
-            envs.make(config.task, config.dynamics, s, **self.env_options) for s in self.seeds
-        ]
+        # the first seed's environment gives the sizes the memory check needs; the others
+        # are made after it
+        self.envs = [envs.make(config.task, config.dynamics, self.seeds[0], **self.env_options)]
         env = self.envs[0]
         self.low = np.asarray(env.action_space.low, np.float64)
         self.high = np.asarray(env.action_space.high, np.float64)
         self.low32, self.high32 = self.low.astype(np.float32), self.high.astype(np.float32)
         self.act_dtype = env.action_space.dtype
         self.obs_dim, self.act_dim = env.observation_space.shape[0], self.low.shape[0]
+        n = len(self.seeds)
+        check_training_memory(
+            n,
+            n * Host.rollout_bytes(self.obs_dim, self.act_dim, config.rollout_steps),
+            n * state_bytes(config, self.obs_dim, self.act_dim),
+            f"lower --hidden ({','.join(map(str, config.hidden))}) or --rollout-steps "
+            f"({config.rollout_steps}), or train fewer seeds per run",
+        )
+        self.envs += [
+            envs.make(config.task, config.dynamics, s, **self.env_options) for s in self.seeds[1:]
+        ]
         self.ds = config.uncertainty_set == "ds"
         self.shadows = [ShadowSimulator(e) for e in self.envs] if self.ds else []
         self.weight_reg = np.float32(

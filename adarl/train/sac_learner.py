@@ -42,7 +42,7 @@ from adarl.errors import UsageError
 from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, codec, layout
 from adarl.train import loop
-from adarl.train.guards import check_memory
+from adarl.train.guards import check_training_memory
 
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
@@ -148,9 +148,10 @@ class SACLearner:
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
         self.env_options = config.env_options()
-        self.envs = [  # an unknown task or dynamics fails here, before anything is written
-            make(config.task, dynamics=config.dynamics, seed=s, **self.env_options)
-            for s in self.seeds
+        # the first seed's environment (an unknown task or dynamics fails here, before anything
+        # is written) gives the sizes the memory check needs; the others are made after it
+        self.envs = [
+            make(config.task, dynamics=config.dynamics, seed=self.seeds[0], **self.env_options)
         ]
         space = self.envs[0].action_space
         self.spec = sac.make_spec(
@@ -161,10 +162,17 @@ class SACLearner:
         self.shared_widths = config.lanes > 0
         self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
         self.truncation_steps = set(sac.truncation_steps(config))
-        check_memory(
+        check_training_memory(
+            self.n,
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
-            f"the replay buffers ({self.n} seeds x buffer-size {config.buffer_size})",
+            self.n * sac.state_bytes(self.spec),
+            f"lower --buffer-size ({config.buffer_size}) or --hidden "
+            f"({','.join(map(str, config.hidden))}), or train fewer seeds per run",
         )
+        self.envs += [
+            make(config.task, dynamics=config.dynamics, seed=s, **self.env_options)
+            for s in self.seeds[1:]
+        ]
         for label in config.eval_dynamics:  # checked now, not at the first evaluation
             make(
                 config.task, dynamics=label, seed=0, **self.env_options | {"max_episode_steps": 1}

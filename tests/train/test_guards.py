@@ -36,3 +36,43 @@ def test_divergence_is_noted_for_one_non_finite_value_among_finite_ones(tmp_path
     assert "loss_q" not in watch.found
     with pytest.raises(Diverged, match=r"critic parameters \(seeds 7, 9\)"):
         watch.check(100)
+
+
+def test_network_bytes_are_counted_by_hand_and_match_the_initialised_state():
+    import jax
+
+    from adarl.algos import rnac, sac
+    from adarl.algos.rnac_config import RNACConfig
+    from adarl.algos.sac_config import SACConfig
+
+    # obs 11, act 3, one hidden layer of 4. SAC actor: trunk 11·4+4 = 48, two heads 2·(4·3+3)
+    # = 30; one critic: (14·4+4) + (4·1+1) = 65. Actor x 3 (Adam's two moments), two critics x 4
+    # (target copies, two moments): 3·78 + 4·130 = 754 floats
+    spec = sac.make_spec(SACConfig(algo="sac", hidden=(4,)), 11, 3, [-1.0] * 3, [1.0] * 3)
+    assert sac.state_bytes(spec) == 4 * 754
+    state = sac.init_state(spec, 0, with_buffer=False)
+    keys = ("actor", "critic", "critic_target", "opt_actor", "opt_critic")
+    leaves = [x for k in keys for x in jax.tree_util.tree_leaves(state[k]) if x.dtype == np.float32]
+    assert sum(x.nbytes for x in leaves) == 4 * 754
+    # RNAC actor: 48 + (4·3+3) + 3 log-stds = 66; critic 48 + 5 = 53; x 3 (two moments)
+    config = RNACConfig(hidden=(4,))
+    assert rnac.state_bytes(config, 11, 3) == 4 * 3 * 119
+    trained, _ = rnac.init_states([0], config, 11, 3)
+    leaves = [x for x in jax.tree_util.tree_leaves(trained) if x.dtype == np.float32]
+    assert sum(x.nbytes for x in leaves) == 4 * 3 * 119
+
+
+def test_the_memory_check_says_what_to_lower(monkeypatch):
+    from adarl.errors import UsageError
+    from adarl.train import guards
+
+    monkeypatch.setattr(guards, "machine_memory", lambda: 2**30)
+    guards.check_memory(2**30, "the thing", "lower --size")  # exactly the memory: fits
+    with pytest.raises(UsageError) as err:
+        guards.check_training_memory(3, 2**30, 2**29, "lower --size")
+    assert str(err.value) == (  # and 3 environments of 2 MiB: 1.506 GiB
+        "3 seeds (buffers 1.0 GiB, networks 0.5 GiB, environments 0.0 GiB) need 1.5 GiB "
+        "but this machine has 1.0 GiB of memory; lower --size"
+    )
+    monkeypatch.setattr(guards, "machine_memory", lambda: None)  # not knowable: no guess
+    guards.check_memory(10**30, "the thing", "lower --size")
