@@ -36,6 +36,11 @@ class Diverged(RunFailed):
     exit_code = 3
 
 
+def reason(exc: BaseException) -> str:
+    """An exception as one line, `Type: message`, for the parenthesis of a one-line error."""
+    return " ".join(f"{type(exc).__name__}: {exc}".split())
+
+
 def check_choice(kind: str, value: str, allowed) -> str:
     """Return `value` if it is one of `allowed`, else raise a one-line `UsageError`."""
     allowed = list(allowed)

@@ -158,7 +158,7 @@ def load(path: str | os.PathLike) -> NumpyPolicy:
     """Load a policy file written by adarl; returns a callable obs -> action. A file that is
     not one (truncated, bit-flipped, another kind of file) raises a one-line `UsageError`
     naming it."""
-    from adarl.errors import UsageError
+    from adarl.errors import UsageError, reason
 
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -166,7 +166,6 @@ def load(path: str | os.PathLike) -> NumpyPolicy:
     except FileNotFoundError:
         raise UsageError(f"policy file {path} does not exist") from None
     except Exception as exc:  # BadZipFile, EOFError, ValueError, KeyError, …: all mean damaged
-        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
         raise UsageError(
-            f"policy file {path} is damaged or not an adarl policy ({reason})"
+            f"policy file {path} is damaged or not an adarl policy ({reason(exc)})"
         ) from exc

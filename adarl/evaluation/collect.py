@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from adarl.errors import UsageError
+from adarl.errors import UsageError, reason
 from adarl.evaluation.runs import Run, config_value
 from adarl.runs.checkpoints import checkpoint_dirs, policy_files
 from adarl.runs.layout import (
@@ -88,8 +88,9 @@ def evaluations(run: Run) -> list[Evaluation]:
         try:
             meta = json.loads(sidecar.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:  # dropping it would change the report silently
-            reason = " ".join(f"{type(exc).__name__}: {exc}".split())
-            raise UsageError(f"evaluation sidecar {sidecar} is unreadable ({reason})") from None
+            raise UsageError(
+                f"evaluation sidecar {sidecar} is unreadable ({reason(exc)})"
+            ) from None
         if not isinstance(meta, dict):
             raise UsageError(f"evaluation sidecar {sidecar} is not a JSON object")
         table = read_table(csv_path)
@@ -362,8 +363,7 @@ def spectra(run: Run) -> list[Spectrum]:
                     else np.arange(len(next(iter(layers.values()))))
                 )
         except Exception as exc:  # BadZipFile, EOFError, ValueError, StopIteration…: damaged
-            reason = " ".join(f"{type(exc).__name__}: {exc}".split())
-            raise UsageError(f"spectrum file {path} is damaged ({reason})") from None
+            raise UsageError(f"spectrum file {path} is damaged ({reason(exc)})") from None
         found.append(Spectrum(int(m.group(1)), layers, np.asarray(seeds)))
     return sorted(found, key=lambda s: s.step)
 

@@ -45,7 +45,7 @@ import pandas as pd
 
 from adarl import __version__
 from adarl.algos import registry
-from adarl.errors import UsageError, check_choice
+from adarl.errors import UsageError, check_choice, reason
 from adarl.evaluation import behaviour, collect, compare, figures, selection, stats, tables
 from adarl.evaluation.runs import (
     LAUNCH_KEYS,
@@ -194,8 +194,7 @@ def read_scores(path: Path) -> pd.DataFrame:
     try:
         scores = pd.read_csv(path, encoding="utf-8")
     except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
-        raise UsageError(f"{path} is not a report's scores.csv ({reason})") from None
+        raise UsageError(f"{path} is not a report's scores.csv ({reason(exc)})") from None
     missing = [c for c in ("task", "method", "run", "seed", "score") if c not in scores]
     if missing:
         raise UsageError(f"{path} lacks the column(s) {', '.join(missing)} of a report's scores")

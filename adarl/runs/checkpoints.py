@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from adarl import __version__
-from adarl.errors import UsageError
+from adarl.errors import UsageError, reason
 from adarl.files import fs_errors, fsync_dir, json_default, temp_dir
 from adarl.runs.layout import (
     ARRAYS_FILE,
@@ -146,14 +146,10 @@ def read_meta(path: Path) -> dict:
     try:
         meta = json.loads((path / META_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
-        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({_reason(exc)})") from exc
+        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({reason(exc)})") from exc
     if not isinstance(meta, dict):
         raise CheckpointDamaged(f"checkpoint {path} is unreadable ({META_FILE} is not an object)")
     return meta
-
-
-def _reason(exc: BaseException) -> str:
-    return " ".join(f"{type(exc).__name__}: {exc}".split())
 
 
 def load_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
@@ -170,7 +166,7 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dic
     except CheckpointDamaged:
         raise
     except Exception as exc:  # BadZipFile, EOFError, OSError, ValueError, …: all mean damaged
-        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({_reason(exc)})") from exc
+        raise CheckpointDamaged(f"checkpoint {path} is unreadable ({reason(exc)})") from exc
     if meta.get("format_version") != RUN_FORMAT_VERSION:
         raise UsageError(
             f"checkpoint {path} has format version {meta.get('format_version')!r}; "

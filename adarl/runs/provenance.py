@@ -16,7 +16,7 @@ from importlib import metadata
 from pathlib import Path
 
 from adarl import __version__
-from adarl.errors import UsageError
+from adarl.errors import UsageError, reason
 from adarl.files import atomic_write_json
 from adarl.runs.layout import ENVIRONMENT_FILE
 
@@ -67,8 +67,7 @@ def read_environment(run_dir: str | os.PathLike) -> dict | None:
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:  # ValueError: bad JSON or not UTF-8
-        reason = " ".join(f"{type(exc).__name__}: {exc}".split())
-        raise UsageError(f"{path} is unreadable ({reason}); delete it or restore it") from None
+        raise UsageError(f"{path} is unreadable ({reason(exc)}); delete it or restore it") from None
     if not isinstance(record, dict):
         raise UsageError(f"{path} is not a JSON object; delete it or restore it")
     for key in RECORD_OBJECTS:
