@@ -804,8 +804,8 @@ def control_section(
 ) -> Section | None:
     """AdaRL minus its schedule-matched control (`control_of` in the registry), seed by seed:
     runs of the two that agree on everything else are paired on their common seeds, and the mean
-    per-seed difference of final nominal return gets a Student-t interval
-    (`stats.paired_difference_ci`). None without control runs."""
+    per-seed difference of the score (as Table 1's: the mean of the last k evaluations) gets a
+    Student-t interval (`stats.paired_difference_ci`). None without control runs."""
     arms = {r.algo: registry.role(r.algo, "control_of") for r in runs}
     arms = {control: arm for control, arm in arms.items() if arm}
     if not arms:
