@@ -1,0 +1,116 @@
+"""Tables of a milestone of docs/experiments/paper-schedule-hopper.md from the sweep's run folders:
+the ranks Eq. 5 proposed at each cut logged so far (applied by AdaRL; logged and not applied by the
+control, whose networks differ after the first cut), that the control shares AdaRL's prefix
+bit for bit, and each seed's score at the milestone (the mean of its last 5 nominal evaluations
+at steps up to it) in the three arms, with the paired AdaRL − control test, the Welch AdaRL − SAC
+test and their power. An arm that has not reached the milestone is named and left out.
+
+    python docs/experiments/paper_schedule.py results/paper-schedule-hopper 2000000
+"""
+
+from __future__ import annotations
+
+import collections
+import sys
+from pathlib import Path
+
+import numpy as np
+from mechanism import LAYERS, TARGET, paired_line, prefix_rows, rows
+
+from adarl.evaluation import stats
+from adarl.evaluation.collect import last_evaluations, read_table
+
+ARMS = {"AdaRL": "adarl_rank_rule-cumulative", "control": "adarl-control-eq5", "SAC": "sac"}
+LAST_K = 5  # the report's default score: the mean of the last 5 evaluations
+
+
+def scores_at(run_dir: Path, milestone: int) -> dict[int, float] | int:
+    """Each seed's score from the nominal evaluations at steps ≤ `milestone`; the newest
+    evaluated step instead when the run has not reached the milestone."""
+    log = read_table(run_dir / "eval.csv")
+    log = log[log["dynamics"] == "nominal"]
+    newest = int(log["step"].max()) if len(log) else 0
+    if newest < milestone:
+        return newest
+    table = last_evaluations(log[log["step"] <= milestone], LAST_K)
+    return {int(s): float(v) for s, v in zip(table["seed"], table["score"])}
+
+
+def proposals(run_dir: Path) -> dict[int, dict[int, dict[str, int]]]:
+    """cut step → seed → layer → the rank Eq. 5 proposed there."""
+    out = collections.defaultdict(lambda: collections.defaultdict(dict))
+    for r in rows(run_dir / "truncations.csv"):
+        out[int(r["step"])][int(r["seed"])][r["layer"]] = int(r["proposed_rank"])
+    return out
+
+
+def welch_line(x: np.ndarray, y: np.ndarray) -> str:
+    ci = stats.welch_difference_ci(x, y)
+    sd = stats.pooled_sd(x, y)
+    return (
+        f"- AdaRL − SAC: AdaRL {x.mean():,.0f}, SAC {y.mean():,.0f}; difference {ci.point:+,.0f}, "
+        f"95% Welch t interval [{ci.low:+,.0f}, {ci.high:+,.0f}]; exact permutation p = "
+        f"{stats.permutation_p_value(x, y):.3g} ({len(x)} vs {len(y)} seeds); pooled SD "
+        f"{sd:,.0f}; smallest difference detectable at 80% power "
+        f"{stats.minimum_detectable_difference(sd, len(x), len(y)):,.0f}; seeds per arm a "
+        f"{TARGET:.0f}-point difference would need: {stats.seeds_per_arm(TARGET, sd):,.0f}"
+    )
+
+
+def main(sweep: Path, milestone: int) -> None:
+    units = {arm: sorted(sweep.glob(f"*/{name}/seeds-*")) for arm, name in ARMS.items()}
+    score: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
+    print(f"## Milestone {milestone:,}\n")
+    for arm, dirs in units.items():
+        for run_dir in dirs:
+            got = scores_at(run_dir, milestone)
+            if isinstance(got, int):
+                print(f"- {arm} ({run_dir.name}) has not reached it: newest evaluation at {got:,}")
+            else:
+                score[arm] |= got
+
+    for method_dir in units["AdaRL"]:
+        control_dir = method_dir.parent.parent / ARMS["control"] / method_dir.name
+        applied = proposals(method_dir)
+        if not applied:
+            continue
+        fork = min(applied)
+        same = all(
+            prefix_rows(method_dir / name, fork) == prefix_rows(control_dir / name, fork)
+            for name in ("episodes.csv", "eval.csv", "train.csv")
+        )
+        print(f"\nThe control shares AdaRL's logs up to the fork at {fork:,}: {same}")
+        shadow = proposals(control_dir) if control_dir.exists() else {}
+        for cut in sorted(applied):
+            print(f"\n### Ranks Eq. 5 proposed at step {cut:,} (AdaRL applied them; the control")
+            print("kept 64 and logged its own)\n")
+            print("| seed | AdaRL actor | Q1 | Q2 | control actor | Q1 | Q2 |")
+            print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+            for seed, layers in sorted(applied[cut].items()):
+                logged = shadow.get(cut, {}).get(seed, {})
+                print(
+                    f"| {seed} | "
+                    + " | ".join(str(layers[name]) for name in LAYERS)
+                    + " | "
+                    + " | ".join(str(logged.get(name, "—")) for name in LAYERS)
+                    + " |"
+                )
+
+    present = [arm for arm in ARMS if score[arm]]
+    seeds = sorted(set.intersection(*(set(score[arm]) for arm in present))) if present else []
+    print(f"\n### Score at {milestone:,} (mean of the last {LAST_K} nominal evaluations)\n")
+    print("| seed | " + " | ".join(present) + " |\n| ---: |" + " ---: |" * len(present))
+    for s in seeds:
+        print(f"| {s} | " + " | ".join(f"{score[arm][s]:,.0f}" for arm in present) + " |")
+    print()
+    if score["AdaRL"] and score["control"]:
+        print(paired_line(f"score at {milestone:,}", score["AdaRL"], score["control"]))
+    if score["AdaRL"] and score["SAC"]:
+        both = sorted(set(score["AdaRL"]) & set(score["SAC"]))
+        x = np.array([score["AdaRL"][s] for s in both])
+        y = np.array([score["SAC"][s] for s in both])
+        print(welch_line(x, y))
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]), int(sys.argv[2]))
