@@ -4,8 +4,11 @@ and with `--dry-run`.
 A unit's time is a start-up plus its remaining environment steps, summed over its seeds, divided
 by a measured rate in seed-steps per second of wall time (what a sweep unit pinned to its
 `cpus_per_unit` cores achieved, evaluations, checkpoints, truncations and compilation included).
-The sweep's time is that of the runner's schedule: units longest first, each to the first free
-slot, a fork unit once its parent has reached the fork point (its share of the parent's time). Rates come, most specific first, from the unit's own run folder (a resumed sweep),
+The sweep's time is that of the runner's schedule: each free slot takes the ready unit with the
+longest critical path (its own time left, or the time until its parent reaches a fork point plus
+that fork's, when longer), a fork unit is ready once its parent has reached the fork point (its
+share of the parent's time). Rates come, most specific first, from the unit's own run folder (a
+resumed sweep),
 from other runs of the same algorithm on the same task in the sweep folder, and from the sweep
 units measured on this 2-core machine and shipped in `throughput.csv` (the committed
 experiments, docs/experiments/); a unit with no measurement of its algorithm on its task borrows
@@ -76,6 +79,7 @@ class Estimate:
     slots: int
     units: tuple[UnitEstimate, ...]
     sources: tuple[str, ...]
+    critical_paths: tuple[tuple[str, float], ...] = ()  # (unit id, seconds): the runner's order
 
     @property
     def borrowed(self) -> int:
@@ -139,23 +143,49 @@ def pick_rate(
     raise ValueError("no throughput measurement at all")
 
 
-def fork_schedule_seconds(jobs: list[tuple[str, float, str | None, float]], slots: int) -> float:
+def critical_paths(jobs: list[tuple[str, float, str | None, float]]) -> dict[str, float]:
+    """Each job's critical path with unlimited slots, by id: the seconds from its start until it
+    and every fork that starts from it have finished, max(duration, max over its forks of (start
+    offset + the fork's critical path)). `jobs` as for `fork_schedule_seconds`."""
+    forks: dict[str, list[tuple]] = {}
+    for job in jobs:
+        if job[2] is not None:
+            forks.setdefault(job[2], []).append(job)
+    paths: dict[str, float] = {}
+
+    def path(job: tuple) -> float:
+        if job[0] not in paths:
+            paths[job[0]] = max([job[1], *(fork[3] + path(fork) for fork in forks.get(job[0], []))])
+        return paths[job[0]]
+
+    for job in jobs:
+        path(job)
+    return paths
+
+
+def fork_schedule_seconds(
+    jobs: list[tuple[str, float, str | None, float]], slots: int, by_critical_path: bool = True
+) -> float:
     """Wall time of the runner's schedule of `jobs` (id, duration, parent id or None, seconds
-    after the parent's start at which it may start), listed in submission order: each free
-    slot takes the next job in the queue, and a fork joins the end of the queue once its parent
-    has run that long (at once if its parent is not in `jobs`)."""
+    after the parent's start at which it may start), listed in file order. A fork is ready once
+    its parent has run that long (at once if its parent is not in `jobs`); each free slot takes
+    the ready job with the longest critical path (`critical_paths`; file order among equals), or
+    with `by_critical_path` false the one that became ready first (file order at the start)."""
     ids = {job[0] for job in jobs}
-    queue = [job for job in jobs if job[2] not in ids]
+    paths = critical_paths(jobs) if by_critical_path else {}
+    index = {job[0]: i for i, job in enumerate(jobs)}
+    ready = [job for job in jobs if job[2] not in ids]
     released: list[tuple[float, int, tuple]] = []  # (time, order, job)
     free = [0.0] * max(1, slots)
     end = 0.0
-    while queue or released:
+    while ready or released:
         now = heapq.heappop(free)
-        if not queue and released[0][0] > now:
+        if not ready and released[0][0] > now:
             now = released[0][0]
         while released and released[0][0] <= now:
-            queue.append(heapq.heappop(released)[2])
-        job = queue.pop(0)
+            ready.append(heapq.heappop(released)[2])
+        job = min(ready, key=lambda j: (-paths[j[0]], index[j[0]])) if paths else ready[0]
+        ready.remove(job)
         finish = now + job[1]
         end = max(end, finish)
         heapq.heappush(free, finish)
@@ -172,15 +202,15 @@ def estimate(
     shipped: list[Measurement],
     here: dict[str, Measurement] | None = None,
     cores: int | None = None,
-    longest_first: bool = True,
+    by_critical_path: bool = True,
 ) -> Estimate:
     """The sweep's wall time on `slots` slots with `remaining[unit.id]` steps per seed left per
     unit (0: done; default: its budget, from its fork point for a fork), from the `shipped`
     measurements and those of the runs already in the sweep folder (`here`, by unit id). Units
     that would share cores
     (slots × cpus_per_unit > `cores`) run proportionally slower than measured (the measurements
-    had a core per unit). The schedule is the runner's, longest first, or with `longest_first`
-    false the file order (how sweeps ran before the runner ordered them)."""
+    had a core per unit). The schedule is the runner's, critical path first, or with
+    `by_critical_path` false the file order (how sweeps ran before the runner ordered them)."""
     here = here or {}
     share = 1.0
     if cores and slots * sweep.cpus_per_unit > cores:
@@ -200,8 +230,7 @@ def estimate(
     seconds = {u.unit_id: u.seconds for u in units}
     by_id = {u.id: u for u in sweep.units}
     jobs = []
-    order = sorted(sweep.units, key=lambda u: -seconds[u.id]) if longest_first else sweep.units
-    for unit in order:
+    for unit in sweep.units:
         if seconds[unit.id] <= 0:
             continue
         parent, after = unit.fork_of, 0.0
@@ -212,11 +241,12 @@ def estimate(
             after = STARTUP_S + (seconds[parent] - STARTUP_S) * min(1.0, max(0.0, part))
         jobs.append((unit.id, seconds[unit.id], parent, after))
     return Estimate(
-        seconds=fork_schedule_seconds(jobs, slots),
+        seconds=fork_schedule_seconds(jobs, slots, by_critical_path),
         unit_seconds=sum(todo),
         slots=slots,
         units=tuple(units),
         sources=tuple(sorted(sources)),
+        critical_paths=tuple(critical_paths(jobs).items()),
     )
 
 
@@ -318,10 +348,10 @@ def for_sweep(sweep: Sweep, out: Path, slots: int, cores: int | None = None) -> 
     return estimate(sweep, remaining, slots, read_measurements(), here, cores)
 
 
-def unit_seconds(sweep: Sweep, out: Path) -> dict[str, float]:
-    """Each unit's estimated time left (seconds on one slot), by unit id; what the runner orders
-    the units by. A ValueError if no measurement exists."""
-    return {u.unit_id: u.seconds for u in for_sweep(sweep, out, 1).units}
+def unit_critical_paths(sweep: Sweep, out: Path) -> dict[str, float]:
+    """Each unfinished unit's critical path (seconds on its own slot, `critical_paths`), by unit
+    id; what the runner orders the units by. A ValueError if no measurement exists."""
+    return dict(for_sweep(sweep, out, 1).critical_paths)
 
 
 def measurements_of(sweep_dir: Path, source: str) -> list[Measurement]:

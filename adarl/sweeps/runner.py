@@ -14,9 +14,12 @@ Re-running the same command is how a sweep resumes: units whose run folder has D
 the others are queued again and each attempt resumes from its run's newest checkpoint
 (adarl.sweeps.worker decides that, under the unit's lock).
 
-Units start longest first (by `adarl.sweeps.estimate`), so that a long unit never starts last
-and runs alone at the end. A fork unit (`fork: {from, at}`) waits until its parent unit has
-written the checkpoint it starts from, and fails if its parent fails or finishes without it.
+The runner hands the backend at most one unit per slot. Each free slot takes the ready unit with
+the longest critical path (by `adarl.sweeps.estimate`: its own time left, or the time until it
+reaches a fork point plus that fork's time, when longer), so that a long unit never starts last
+and runs alone at the end, and a unit that others fork from starts before an independent unit of
+the same length. A fork unit (`fork: {from, at}`) becomes ready when its parent unit has written
+the checkpoint it starts from, and fails if its parent fails or finishes without it.
 """
 
 from __future__ import annotations
@@ -152,6 +155,8 @@ class SweepRun:
         self.start_step: dict[str, int] = {}  # step each running attempt started from
         self.skipped = 0
         self.waiting: list[Unit] = []  # fork units whose parent has not reached the fork point
+        self.ready: list[Unit] = []  # queued units not yet handed to the backend
+        self.order = {u.id: i for i, u in enumerate(critical_path_first(sweep, out))}
 
     # ------------------------------------------------------------------ loop
     def run(self) -> int:
@@ -171,16 +176,17 @@ class SweepRun:
                 if state == "start" and unit.fork_of:
                     state = f"start: a fork of {unit.fork_of} at step {unit.fork_step:,}"
                 self.line(unit, "queued", f"({state})")
-        for unit in longest_first(self.sweep, self.out):
+        for unit in self.sweep.units:
             if self.manifest.unit(unit.id)["status"] == "queued":
                 if unit.fork_of and not fork_ready(self.out, unit):
                     self.waiting.append(unit)
                 else:
-                    self.submit(unit)
+                    self.ready.append(unit)
+        self.dispatch()
         self.manifest.save()
         last_progress = time.monotonic()
         try:
-            while self.in_flight or self.waiting:
+            while self.in_flight or self.waiting or self.ready:
                 if self.in_flight:
                     finished, _ = cf.wait(
                         list(self.in_flight), timeout=POLL_S, return_when=cf.FIRST_COMPLETED
@@ -192,6 +198,7 @@ class SweepRun:
                 for future in finished:
                     self.finish(future)
                 self.release_forks()
+                self.dispatch()
                 if time.monotonic() - last_progress >= self.options.progress_every:
                     self.progress_lines()
                     last_progress = time.monotonic()
@@ -205,6 +212,13 @@ class SweepRun:
                 echo("sweep interrupted; run the same command again to resume it")
             raise
         return self.summary(time.monotonic() - start)
+
+    def dispatch(self) -> None:
+        """Hand ready units to the backend while it has a free slot, critical path first."""
+        while self.ready and len(self.in_flight) < self.backend.slots:
+            unit = min(self.ready, key=lambda u: self.order[u.id])
+            self.ready.remove(unit)
+            self.submit(unit)
 
     def submit(self, unit: Unit) -> None:
         record = self.manifest.unit(unit.id)
@@ -303,7 +317,8 @@ class SweepRun:
                 "failed",
                 f"attempt {attempt}: {detail}; retrying ({left} attempt{'s' * (left != 1)} left)",
             )
-            self.submit(unit)
+            self.manifest.update(unit.id, status="queued")
+            self.ready.append(unit)
         else:
             self.manifest.update(unit.id, status="failed", finished=time.time())
             why = f" ({reason}, not retried)" if reason else ""
@@ -323,7 +338,7 @@ class SweepRun:
             if fork_ready(self.out, unit):
                 self.waiting.remove(unit)
                 self.line(unit, "queued", f"({unit.fork_of} reached step {unit.fork_step:,})")
-                self.submit(unit)
+                self.ready.append(unit)
             elif unit.fork_of not in running and parent["status"] in ("failed", "done"):
                 self.waiting.remove(unit)
                 why = (
@@ -385,16 +400,17 @@ class SweepRun:
 
 
 # ----------------------------------------------------------------------------- helpers
-def longest_first(sweep: Sweep, out: Path) -> list[Unit]:
-    """The units, those with the largest estimated time left first (file order among equals,
-    and file order throughout when no measurement gives an estimate)."""
+def critical_path_first(sweep: Sweep, out: Path) -> list[Unit]:
+    """The units, those with the longest estimated critical path first (`estimate.critical_paths`;
+    file order among equals and for finished units, and throughout when no measurement gives an
+    estimate)."""
     from adarl.sweeps import estimate
 
     try:
-        seconds = estimate.unit_seconds(sweep, out)
+        paths = estimate.unit_critical_paths(sweep, out)
     except (ValueError, OSError):  # no throughput measurement to go by
         return list(sweep.units)
-    return sorted(sweep.units, key=lambda u: -seconds[u.id])
+    return sorted(sweep.units, key=lambda u: -paths.get(u.id, 0.0))
 
 
 def fork_ready(out: Path, unit: Unit) -> bool:

@@ -33,18 +33,35 @@ def test_train_seconds_adds_each_interval_over_its_rate():
 
 
 @pytest.mark.parametrize(
-    "durations, slots, expected",
+    "durations, slots, expected, in_file_order",
     [
-        ([10, 10, 10], 2, 20),
-        ([10, 10, 30], 2, 40),  # file order: the long unit starts last
-        ([30, 10, 10, 10], 2, 30),
-        ([5, 5, 5], 8, 5),
-        ([7, 8], 1, 15),
+        ([10, 10, 10], 2, 20, 20),
+        ([10, 10, 30], 2, 30, 40),  # in file order the long unit starts last
+        ([30, 10, 10, 10], 2, 30, 30),
+        ([5, 5, 5], 8, 5, 5),
+        ([7, 8], 1, 15, 15),
     ],
 )
-def test_schedule_gives_each_unit_the_first_free_slot(durations, slots, expected):
+def test_schedule_gives_each_unit_the_first_free_slot(durations, slots, expected, in_file_order):
     jobs = [(str(i), float(d), None, 0.0) for i, d in enumerate(durations)]  # no forks
     assert estimate.fork_schedule_seconds(jobs, slots) == expected
+    assert estimate.fork_schedule_seconds(jobs, slots, by_critical_path=False) == in_file_order
+
+
+def test_critical_path_of_a_unit_is_its_time_or_its_forks_when_longer():
+    jobs = [("p", 100.0, None, 0.0), ("f", 80.0, "p", 50.0), ("g", 20.0, "p", 70.0),
+            ("i", 110.0, None, 0.0)]  # fmt: skip
+    assert estimate.critical_paths(jobs) == {"p": 130.0, "f": 80.0, "g": 20.0, "i": 110.0}
+
+
+def test_a_unit_others_fork_from_starts_first_when_its_critical_path_is_longest():
+    """p (100 s) leads to fork f (80 s) 50 s in; i1 and i2 take 110 s; two slots.
+    Longest first (i1, i2, then p at 110, f from 160) ends at 240. Critical path first: p
+    (130) and i1 at 0; at 100 i2 (110) before f (80); f at 110 ends at 190, i2 at 210."""
+    jobs = [("i1", 110.0, None, 0.0), ("i2", 110.0, None, 0.0), ("p", 100.0, None, 0.0),
+            ("f", 80.0, "p", 50.0)]  # fmt: skip
+    assert estimate.fork_schedule_seconds(jobs, 2, by_critical_path=False) == 240
+    assert estimate.fork_schedule_seconds(jobs, 2) == 210
 
 
 def test_the_most_specific_measurement_gives_the_rate():
@@ -174,11 +191,11 @@ def test_shipped_measurements_against_the_committed_experiments(name):
     sweep = spec.load(name)
     shipped = estimate.read_measurements()
     # they ran in file order, before the runner started the longest units first
-    own = estimate.estimate(sweep, {}, 2, shipped, cores=2, longest_first=False)
+    own = estimate.estimate(sweep, {}, 2, shipped, cores=2, by_critical_path=False)
     assert own.seconds == pytest.approx(_real_wall_s(name), rel=0.03)
     source = f"docs/experiments/{name}.md"
     other = [m for m in shipped if m.source != source]  # from the other experiment only
-    borrowed = estimate.estimate(sweep, {}, 2, other, cores=2, longest_first=False)
+    borrowed = estimate.estimate(sweep, {}, 2, other, cores=2, by_critical_path=False)
     assert 0.7 < borrowed.seconds / _real_wall_s(name) < 1.35
 
 

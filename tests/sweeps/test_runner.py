@@ -4,13 +4,17 @@ failures reported in the manifest and the summary, exit status 1."""
 import concurrent.futures as cf
 import json
 
-from adarl.sweeps import runner, spec
+import pytest
+
+from adarl.sweeps import estimate, runner, spec
+from adarl.sweeps.estimate import Measurement
 
 
 class FakeBackend:
     """Finishes every job at once with the next outcome: an exit status or an exception."""
 
     where = "a fake backend"
+    slots = 1  # units handed over at once
 
     def __init__(self, *outcomes):
         self.outcomes = list(outcomes)
@@ -119,6 +123,29 @@ FORK_SWEEP = {
     "preset": "smoke",
     "budget": 2000,
 }  # fmt: skip
+
+
+def test_a_unit_that_others_fork_from_starts_before_a_longer_independent_unit(
+    tmp_path, monkeypatch
+):
+    """One slot; 2 seeds × 2,000 steps each, fork at 950, 10 s start-up per unit. a at 100
+    seed-steps/s: 50 s, its fork point after 10 + 40 × 950/2000 = 29 s; c from there: 10 +
+    2 × 1,050/100 = 31 s, so a's critical path is 29 + 31 = 60 s. s at 4000/45 seed-steps/s:
+    55 s. Longest first would start s (55 > 50); critical path first starts a (60 > 55)."""
+    monkeypatch.setattr(runner, "POLL_S", 0.01)
+    rates = {"adarl": (4000, 40.0), "adarl-control": (4000, 40.0), "sac": (4000, 45.0)}
+    measured = [Measurement(a, "hopper", a, 1, n, s, "t") for a, (n, s) in rates.items()]
+    monkeypatch.setattr(estimate, "read_measurements", lambda: measured)
+    doc = {**FORK_SWEEP, "algos": [*FORK_SWEEP["algos"], {"algo": "sac", "name": "s"}]}
+    sweep = spec.parse(doc, source="t.yaml", default_name="t")
+    paths = estimate.unit_critical_paths(sweep, tmp_path / "out")
+    assert paths == pytest.approx(
+        {"hopper/a/seeds-0-1": 60.0, "hopper/c/seeds-0-1": 31.0, "hopper/s/seeds-0-1": 55.0}
+    )
+    backend = WritingBackend(tmp_path / "out", {"hopper/a/seeds-0-1": 950})
+    options = runner.Options(max_retries=0, progress_every=1e9)
+    assert runner.run_sweep(sweep, tmp_path / "out", backend, options) == 0
+    assert _uids(backend) == ["hopper/a/seeds-0-1", "hopper/s/seeds-0-1", "hopper/c/seeds-0-1"]
 
 
 def _fork_sweep(tmp_path, backend):
