@@ -36,6 +36,25 @@ class Diverged(RunFailed):
     exit_code = 3
 
 
+#: What a command catches and reports as one line (`failure`); anything else is a bug and shows
+#: its traceback.
+REPORTED = (UsageError, RunFailed, OSError, KeyboardInterrupt)
+
+
+def failure(command: str, exc: BaseException) -> tuple[int, str]:
+    """The exit code and the one-line message of `command` (e.g. "adarl train") stopped by one
+    of the `REPORTED` exceptions: bad input 2, a `RunFailed` its own (1 for the file system, 3 for
+    divergence), any other file-system error 1, Ctrl-C 130."""
+    if isinstance(exc, KeyboardInterrupt):
+        return 130, f"{command}: interrupted"
+    if isinstance(exc, UsageError):
+        return 2, f"{command}: error: {exc}"
+    if isinstance(exc, RunFailed):
+        return exc.exit_code, f"{command}: error: {exc}"
+    where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+    return 1, f"{command}: error: {where}{getattr(exc, 'strerror', None) or exc}"
+
+
 def reason(exc: BaseException) -> str:
     """An exception as one line, `Type: message`, for the parenthesis of a one-line error."""
     return " ".join(f"{type(exc).__name__}: {exc}".split())

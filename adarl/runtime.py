@@ -7,6 +7,14 @@ import os
 XLA_FLAG_NAMES = ("xla_cpu_multi_thread_eigen", "xla_force_host_platform_device_count")
 
 
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity on Linux, else the machine's)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def xla_flags(cpus: int | None = None) -> list[str]:
     """XLA flags for a process allowed `cpus` cores (default: all of this machine's).
 

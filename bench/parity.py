@@ -390,16 +390,6 @@ def final_returns(by_seed: dict[int, list], seeds: list[int]) -> np.ndarray:
     return np.array([by_seed[s][-1][1] for s in seeds])
 
 
-def difference_ci(x: np.ndarray, y: np.ndarray, reps: int = 10_000, seed: int = 0):
-    """mean(x) − mean(y) with a 95% percentile interval, x and y resampled independently."""
-    rng = np.random.default_rng(seed)
-    xs = stats.stratified_resample(x[:, None], reps, rng)
-    ys = stats.stratified_resample(y[:, None], reps, rng)
-    samples = stats.mean(xs) - stats.mean(ys)
-    low, high = np.percentile(samples, [2.5, 97.5])
-    return stats.Interval(float(x.mean() - y.mean()), float(low), float(high))
-
-
 def summary_text(config, args, curves, walls, sb3_seed_walls, command: str) -> str:
     import jax
     import stable_baselines3
@@ -439,7 +429,7 @@ def summary_text(config, args, curves, walls, sb3_seed_walls, command: str) -> s
             f"| {IMPLS[impl]} | {ci.point:.0f} [{ci.low:.0f}, {ci.high:.0f}] | {per_seed} | "
             f"{wall_text[impl]} |"
         )
-    diff = difference_ci(finals["adarl"], finals["sb3"])
+    diff = stats.difference_ci(finals["adarl"], finals["sb3"])
     poi = stats.probability_of_improvement_ci(finals["adarl"][:, None], finals["sb3"][:, None])
     lines += [
         "",

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -56,7 +57,8 @@ def training_rate(
 ) -> tuple[float, sac_learner.SACLearner]:
     """Environment steps per second (per process) of the training loop, after `warmup` steps."""
     learner = sac_learner.SACLearner(config)
-    run = loop.Loop(learner, Path(tempfile.mkdtemp(prefix="adarl-bench-")), progress=False)
+    run_dir = Path(tempfile.mkdtemp(prefix="adarl-bench-"))  # its logs only; removed below
+    run = loop.Loop(learner, run_dir, progress=False)
     learner.fresh()
     run.open_logs(None)
 
@@ -78,6 +80,7 @@ def training_rate(
     block_until_ready()
     rate = (run.step - first) / (time.perf_counter() - start)
     run.close()
+    shutil.rmtree(run_dir, ignore_errors=True)
     return rate, learner
 
 

@@ -23,3 +23,13 @@ def test_with_xla_flags_replaces_ours_and_keeps_the_users():
     assert "--xla_force_host_platform_device_count=1" in flags
     assert "--xla_cpu_multi_thread_eigen=false" in flags
     assert len(flags) == 3
+
+
+def test_available_cores_follow_the_affinity_and_the_machine_elsewhere(monkeypatch):
+    from adarl import runtime
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
+    assert runtime.available_cores() == 3
+    monkeypatch.delattr(os, "sched_getaffinity")
+    monkeypatch.setattr(os, "cpu_count", lambda: 7)
+    assert runtime.available_cores() == 7

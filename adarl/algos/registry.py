@@ -44,7 +44,9 @@ class Algorithm:
     default_preset: str
     # fields a config.yaml written before they existed is read with (their value back then)
     legacy_fields: Mapping[str, object] = field(default_factory=dict)
-    # the trainer keeps each seed's best policy by evaluation beside the final one (docs/run-format.md)
+    # its original reports each seed's best checkpoint by evaluation: `adarl report
+    # --best-checkpoint best` scores it there (the loop keeps every algorithm's best policy,
+    # docs/run-format.md; the other algorithms are always scored at their final checkpoint)
     best_policy: bool = False
     # the method's name in reports, from a run's config (`value(field, default)`): variants apart
     report_label: Callable[[Callable], str] | None = None
@@ -60,9 +62,9 @@ class Algorithm:
 
 
 # ---------------------------------------------------------------------------- report labels
-# AdaRL's default rank rule and threshold: runs with them are labelled plain `adarl`
-DEFAULT_RANK_RULE = "energy"
-DEFAULT_BETA = 0.98
+# AdaRL's default rank rule and threshold (the config's): runs with them are labelled plain `adarl`
+DEFAULT_RANK_RULE = sac_config.SACConfig.rank_rule
+DEFAULT_BETA = sac_config.SACConfig.beta
 
 
 def _fixed_rank_label(value) -> str:

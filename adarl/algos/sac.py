@@ -4,7 +4,8 @@ Reads top to bottom: the networks, the losses, the jitted update (and the rank t
 policy export. Acting, the lanes of seeds and the truncation schedule are
 `adarl.train.sac_learner`; logging and checkpoints the one loop, `adarl.train.loop`. Every
 algorithm of the SAC family is a configuration of this file (`SACConfig` and `SAC_FAMILY` in
-`adarl.algos.sac_config`): `sac`, `adarl`, `sac-fixed-rank`, `sac-parseval`, `sac-sparse`.
+`adarl.algos.sac_config`): `sac`, `adarl`, `adarl-control`, `sac-fixed-rank`, `sac-parseval`,
+`sac-sparse`.
 
 SAC follows Spinning Up (`spinup/algos/pytorch/sac`), which the AdaRL paper builds on:
 squashed-Gaussian actor with log-std clamped to [−20, 2], twin Q-networks with a Polyak-averaged
@@ -297,41 +298,37 @@ def learning_rate(spec: Spec, state, base_lr: float):
     return jnp.where(state["n_truncations"] > 0, scheduled, base_lr)
 
 
-def total_updates(config: SACConfig) -> int:
-    """Gradient steps in a whole run, as the loop makes them: chunks end at k·update_every (the
-    last at total_steps) and each chunk ending at or after `update_after` runs `update_every`."""
+def updating_chunks(config: SACConfig) -> range:
+    """The chunks of a run that make gradient steps, as the loop runs them: chunk k (k ≥ 1) ends
+    at step min(k·update_every, total_steps) and runs `update_every` updates if it ends at or
+    after `update_after`."""
     c = config
-    n_chunks = -(-c.total_steps // c.update_every)
     if c.update_after > c.total_steps:
-        return 0
-    first = max(-(-c.update_after // c.update_every), 1)
-    return (n_chunks - first + 1) * c.update_every
+        return range(0)
+    n_chunks = -(-c.total_steps // c.update_every)
+    return range(max(-(-c.update_after // c.update_every), 1), n_chunks + 1)
 
 
-def n_truncations(config: SACConfig) -> int:
-    """How many truncations a run of this config makes: one each time the updates since the last
-    reach d_t, checked at chunk boundaries (so an iteration is d_t rounded up to update_every)."""
-    if not config.adapt_rank:
-        return 0
-    iteration = -(-config.truncate_every // config.update_every) * config.update_every
-    return total_updates(config) // iteration
+def total_updates(config: SACConfig) -> int:
+    """Gradient steps in a whole run: `update_every` per updating chunk."""
+    return len(updating_chunks(config)) * config.update_every
 
 
 def truncation_steps(config: SACConfig) -> list[int]:
-    """The environment steps at which a run of this config truncates, as the loop finds them:
-    chunks end at k·update_every (the last at total_steps), each chunk ending at or after
-    `update_after` runs `update_every` updates, and a truncation follows the chunk after which
-    the updates since the last one reach d_t (an iteration of d_t rounded up to update_every)."""
+    """The environment steps at which a run of this config truncates, as the loop finds them: a
+    truncation follows the chunk after which the updates since the last one reach d_t, i.e. every
+    ⌈d_t / update_every⌉-th updating chunk (an iteration of d_t rounded up to update_every)."""
     if not config.adapt_rank:
         return []
     c = config
-    n_chunks = -(-c.total_steps // c.update_every)
-    first = max(-(-c.update_after // c.update_every), 1)  # the first chunk that updates
-    per_iteration = -(-c.truncate_every // c.update_every)  # updating chunks per iteration
-    return [
-        min(chunk * c.update_every, c.total_steps)
-        for chunk in range(first - 1 + per_iteration, n_chunks + 1, per_iteration)
-    ]
+    per_iteration = -(-c.truncate_every // c.update_every)
+    chunks = updating_chunks(c)[per_iteration - 1 :: per_iteration]
+    return [min(chunk * c.update_every, c.total_steps) for chunk in chunks]
+
+
+def n_truncations(config: SACConfig) -> int:
+    """How many truncations a run of this config makes."""
+    return len(truncation_steps(config))
 
 
 def update_step(spec: Spec, state: dict, _=None):
@@ -392,15 +389,6 @@ def append_and_update(spec: Spec, state: dict, rows: dict, n_rows, n_updates: in
         return state, {}
     state, infos = jax.lax.scan(lambda s, x: update_step(spec, s, x), state, None, length=n_updates)
     return state, jax.tree_util.tree_map(jnp.mean, infos)
-
-
-def act(spec: Spec, actor, masks, obs, key, deterministic: bool = False):
-    """Action for one observation (exploration sample, or tanh(μ) when deterministic)."""
-    if deterministic:
-        mu, _ = actor_forward(spec, actor, masks, obs)
-        return squash(spec, mu)
-    action, _ = sample_action(spec, actor, masks, obs, key)
-    return action
 
 
 # ============================================================================ rank adaptation
@@ -514,6 +502,14 @@ def bottleneck_widths(spec: Spec) -> dict[str, int]:
         for i, layer in enumerate(layout)
         if layer[0] == "bottleneck"
     }
+
+
+def layers_of_width(key: str) -> list[str]:
+    """The bottlenecks (`bottleneck_names`) stored at the width keyed `key` by
+    `bottleneck_widths`: "actor:1" -> [actor_1], "critic:1" -> [q1_1, q2_1] (twin critics share
+    their layout)."""
+    net, _, i = key.partition(":")
+    return [f"actor_{i}"] if net == "actor" else [f"q1_{i}", f"q2_{i}"]
 
 
 def with_widths(spec: Spec, widths: dict[str, int]) -> Spec:

@@ -87,8 +87,9 @@ class SACConfig(RunConfig):
     warmup_steps: int = 2000  # learning-rate warm-up after each truncation
     lr_min_ratio: float = 0.1  # floor of the cosine decay, as a fraction of the learning rate
     schedule_first_iteration: bool = False  # warm-up + cosine before the first truncation too
-    # after a truncation, narrow each bottleneck to the largest rank among the seeds (and
-    # recompile): cheaper updates for the rest of the run; False keeps full width, masked
+    # after a truncation, narrow each bottleneck to the largest rank among its lane's seeds (one
+    # seed per lane by default) and recompile: cheaper updates for the rest of the run; False
+    # keeps full width, masked
     compact_bottlenecks: bool = True
     # false: AdaRL's schedule-matched control (--algo adarl-control): every truncation computes
     # and logs the rule's rank but re-parameterises each bottleneck at its old rank, with the same

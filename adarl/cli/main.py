@@ -14,7 +14,7 @@ import sys
 from adarl import __version__
 from adarl.cli import evaluate, export, play, ranks, report, sweep, tasks, theory, train
 from adarl.cli.common import add_common_arguments
-from adarl.errors import RunFailed, UsageError
+from adarl.errors import REPORTED, failure
 from adarl.runtime import configure_xla
 
 COMMANDS = {
@@ -71,19 +71,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args._run(args) or 0)
-    except UsageError as exc:
-        print(f"adarl {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except RunFailed as exc:  # file-system error at run time (1), divergence (3)
-        print(f"adarl {args.command}: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    except OSError as exc:  # any other file-system error: one line, exit 1
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"adarl {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"adarl {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except REPORTED as exc:
+        code, message = failure(f"adarl {args.command}", exc)
+        print(message, file=sys.stderr)
+        return code
 
 
 if __name__ == "__main__":

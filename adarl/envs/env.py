@@ -207,7 +207,7 @@ class DynamicsEnv(gymnasium.Wrapper):
         old, data = raw.model, raw.data
         # Only values changed, so the old MjData has the right sizes; the reset that follows
         # (mj_resetData) reinitialises it from the new model exactly as a fresh MjData.
-        if _sizes(old) != _sizes(model):
+        if model_sizes(old) != model_sizes(model):
             data = mujoco.MjData(model)
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, raw.width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, raw.height)
@@ -222,7 +222,9 @@ class DynamicsEnv(gymnasium.Wrapper):
             renderer.model, renderer.data = model, data
 
 
-def _sizes(model: mujoco.MjModel) -> tuple:
+def model_sizes(model: mujoco.MjModel) -> tuple:
+    """The sizes an MjData is allocated with: two models with the same sizes can share one (a
+    dynamics change edits values only)."""
     return (
         model.nq,
         model.nv,
@@ -231,6 +233,8 @@ def _sizes(model: mujoco.MjModel) -> tuple:
         model.nbody,
         model.ngeom,
         model.njnt,
+        model.nmocap,
+        model.nuserdata,
         model.narena,
         model.nbuffer,
     )

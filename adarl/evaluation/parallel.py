@@ -11,12 +11,12 @@ the number of workers, so the files written do not depend on them.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from adarl.errors import UsageError, check_choice
+from adarl.runtime import available_cores
 
 BACKENDS = ("local", "ray")
 
@@ -41,13 +41,6 @@ def run_unit(unit) -> list[dict]:
     return [{**head, **row} for row in rows]
 
 
-def default_workers() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 def run_units(
     units: Sequence,
     workers: int | None = None,
@@ -62,7 +55,7 @@ def run_units(
     in this process) or `ray` (one Ray task per unit, on a local Ray instance of `workers` CPUs
     or on the cluster at `address`)."""
     check_choice("backend", backend, BACKENDS)
-    workers = default_workers() if workers is None else workers
+    workers = available_cores() if workers is None else workers
     if workers < 1:
         raise UsageError(f"--workers must be ≥ 1, got {workers}")
     if address and backend != "ray":

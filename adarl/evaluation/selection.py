@@ -5,10 +5,10 @@
   reported at its best value of that field per task. `select_best_of` does this for every such
   family on a report's long scores (`task, method, seed, score, run`): per task, the value whose
   runs have the highest mean final return (the Table 1 cell), under one label.
-* **Best checkpoint.** An algorithm whose trainer keeps each seed's best policy by evaluation
-  (the registry's `best_policy`, RNAC's as its original reports) is scored at its final
-  checkpoint, or at its best with `adarl report --best-checkpoint best`; `collect.best_scores`
-  reads it.
+* **Best checkpoint.** An algorithm whose original reports each seed's best checkpoint by
+  evaluation (the registry's `best_policy`: RNAC) is scored at its final checkpoint, or at its
+  best with `adarl report --best-checkpoint best`; `collect.best_scores` reads the best policy
+  the loop keeps for every run.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ and `vmap`) with the same semantics as the NumPy references in the tests.
 A bottleneck is stored padded to its full width `d`: factors `w1` (in × d) and `w2` (d × out) and
 a 0/1 `mask` of length d whose first `rank` entries are 1. The layer computes
 `((x @ w1) * mask) @ w2 + b`, so masked components contribute exactly nothing and receive exactly
-zero gradient; shapes never change, so several seeds with different ranks share one compiled
-update under `vmap`.
+zero gradient; shapes never change with the rank, so one compiled update serves every rank (and
+several seeds with different ranks vmapped into one lane).
 """
 
 from __future__ import annotations

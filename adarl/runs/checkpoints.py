@@ -1,5 +1,5 @@
 """Checkpoints that survive SIGKILL: `checkpoints/step_<n>/` written atomically with a checksum,
-read back with the fallback to an older intact one, the keys both loops write to meta.json, and
+read back with the fallback to an older intact one, the keys the loop writes to meta.json, and
 choosing a checkpoint and its policy files for evaluation (docs/run-format.md,
 docs/reliability.md).
 
@@ -225,7 +225,8 @@ def config_record(config) -> dict:
 
 
 def checkpoint_meta(algo: str, config, seeds, rngs, env_states: list, csv_offsets: dict) -> dict:
-    """The keys both loops write to meta.json (the loop adds its own, e.g. `best`)."""
+    """The keys every learner's checkpoint writes to meta.json (the loop adds its own, e.g.
+    `best`)."""
     return {
         "algo": algo,
         "seeds": [int(s) for s in seeds],

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from adarl.cluster import connect_ray
 from adarl.errors import UsageError
-from adarl.runtime import with_xla_flags
+from adarl.runtime import available_cores, with_xla_flags
 
 
 # ----------------------------------------------------------------------------- the job
@@ -125,8 +125,8 @@ def _signal(proc: subprocess.Popen, sig: int) -> None:
 
 # ----------------------------------------------------------------------------- backends
 def default_workers(cpus_per_unit: int = 1) -> int:
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return max(1, (cores or 1) // cpus_per_unit)
+    """Units at once on this machine: its available cores over `cpus_per_unit`."""
+    return max(1, available_cores() // cpus_per_unit)
 
 
 class LocalBackend:

@@ -28,7 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-from adarl.errors import RunFailed, UsageError
+from adarl.errors import REPORTED, failure
 from adarl.runs.layout import DONE_FILE
 
 EXIT_BUSY = 75  # another process holds the unit's lock
@@ -127,19 +127,10 @@ def main(argv: list[str] | None = None) -> int:
     configure_xla()
     try:
         _train(args, run_dir, mode == "resume", command)
-    except UsageError as exc:
-        print(f"adarl train: error: {exc}", file=sys.stderr, flush=True)
-        return 2
-    except RunFailed as exc:  # file-system error at run time (1), divergence (3)
-        print(f"adarl train: error: {exc}", file=sys.stderr, flush=True)
-        return exc.exit_code
-    except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"adarl train: error: {where}{exc.strerror or exc}", file=sys.stderr, flush=True)
-        return 1
-    except KeyboardInterrupt:
-        print("adarl train: interrupted", file=sys.stderr, flush=True)
-        return 130
+    except REPORTED as exc:
+        code, message = failure("adarl train", exc)
+        print(message, file=sys.stderr, flush=True)
+        return code
     return 0
 
 

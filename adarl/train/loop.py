@@ -20,7 +20,7 @@ and how it acts and learns. It has:
     advance(loop) -> step              act and learn up to the next step the loop must look at,
                                        calling loop.episode_done for every finished episode
     after_update(loop)                 what follows the update before the step's logs
-    train_rows(steps_per_s, watch)     train.csv rows since the last ones (may be empty)
+    train_rows(step, steps_per_s, watch)  train.csv rows since the last ones (may be empty)
     policies()                         each seed's policy arrays (adarl.policy)
     checkpoint_state() -> arrays, meta everything else needed to continue exactly
     note_divergence(watch, step)       non-finite parameters, optimiser states, metrics

@@ -35,6 +35,7 @@ from adarl.algos.rnac import (
     welford,
 )
 from adarl.algos.rnac_config import RNACConfig
+from adarl.envs.env import model_sizes
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec
 from adarl.train import loop
@@ -66,7 +67,7 @@ class ShadowSimulator:
         u = self.env.unwrapped
         if u.model is not self._model:
             old, self._model = self._model, u.model
-            if old is None or _sizes(old) != _sizes(u.model):
+            if old is None or model_sizes(old) != model_sizes(u.model):
                 self._data = self._mj.MjData(u.model)
                 self._state = np.empty(self._mj.mj_stateSize(u.model, self.SPEC))
         return u
@@ -85,22 +86,6 @@ class ShadowSimulator:
         finally:
             u.data = real
         return np.stack(out)
-
-
-def _sizes(m) -> tuple:
-    return (
-        m.nq,
-        m.nv,
-        m.nu,
-        m.na,
-        m.nbody,
-        m.ngeom,
-        m.njnt,
-        m.nmocap,
-        m.nuserdata,
-        m.narena,
-        m.nbuffer,
-    )
 
 
 # ============================================================================ training

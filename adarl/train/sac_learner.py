@@ -2,9 +2,10 @@
 one process.
 
 Each seed has its own environment, replay buffer, networks and RNG streams; the jitted update
-of `adarl.algos.sac` is `vmap`ped over seeds, so all seeds advance in lock-step. The host steps
-the environments, collects `update_every` transitions per seed, then makes one jitted call that
-appends them to the device buffers and runs `update_every` gradient steps (`lax.scan`).
+of `adarl.algos.sac` is `vmap`ped over a lane's seeds, and the lanes advance in lock-step. The
+host steps the environments, collects `update_every` transitions per seed, then makes one jitted
+call per lane that appends them to the device buffers and runs `update_every` gradient steps
+(`lax.scan`).
 
 Every seed is its own lane: its own state, its own XLA computations and, once AdaRL has cut
 its rank, its own bottleneck widths, so a seed's numbers are a function of (code, config, seed)
@@ -46,7 +47,8 @@ from adarl.train.guards import check_training_memory
 
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
-# relative output error on the replay sample; decision: accepted, retained or unchanged
+# relative output error on the replay sample; decision: accepted, retained, unchanged or control
+# (adarl-control: logged, not applied)
 TRUNCATION_COLUMNS = [*LEGACY_TRUNCATION_COLUMNS, "candidate_rank", "error", "decision"]
 BASE_COLUMNS = [
     "step",
@@ -127,7 +129,7 @@ class Lane:
     Lanes take turns: while one lane's update runs (JAX dispatches it asynchronously), the host
     steps the next lane's environments, so the update and the simulator use both cores."""
 
-    seeds: range  # positions in Run.seeds
+    seeds: range  # positions in SACLearner.seeds
     device: jax.Device
     state: dict  # device state, leading axis = the lane's seeds
     builder: replay.ChunkBuilder
@@ -225,9 +227,9 @@ class SACLearner:
                 len(seeds), c.buffer_size, self.spec.obs_dim, self.spec.act_dim
             )
             if buffers is not None:
-                for k in BUFFER_ROW_KEYS:
-                    saved = buffers[k][seeds.start : seeds.stop]
-                    buf[k] = buf[k].at[:, : saved.shape[1]].set(saved)
+                for key in BUFFER_ROW_KEYS:
+                    saved = buffers[key][seeds.start : seeds.stop]
+                    buf[key] = buf[key].at[:, : saved.shape[1]].set(saved)
                 buf["ptr"] = jnp.asarray(buffers["ptr"][seeds.start : seeds.stop])
                 buf["size"] = jnp.asarray(buffers["size"][seeds.start : seeds.stop])
             part["buffer"] = jax.device_put(buf, device)
@@ -466,9 +468,11 @@ class SACLearner:
             seeds = range(self.n) if self.shared_widths else lane.seeds
             widths = {}
             for key in sac.bottleneck_widths(lane.spec):
-                net, _, i = key.partition(":")
-                names = [f"actor_{i}"] if net == "actor" else [f"q1_{i}", f"q2_{i}"]
-                widths[key] = int(max(np.max(ranks[n][seeds.start : seeds.stop]) for n in names))
+                widths[key] = int(
+                    max(
+                        np.max(ranks[n][seeds.start : seeds.stop]) for n in sac.layers_of_width(key)
+                    )
+                )
             if widths != sac.bottleneck_widths(lane.spec):
                 lane.spec = sac.with_widths(lane.spec, widths)
                 lane.fns = compile_functions(lane.spec)
@@ -572,12 +576,11 @@ def _ranks(lane: Lane) -> dict:
 
 def _layer_widths(spec: sac.Spec) -> dict[str, int]:
     """Stored width of every bottleneck, keyed like `sac.bottleneck_names` (actor_1, q1_1, …)."""
-    widths = {}
-    for key, w in sac.bottleneck_widths(spec).items():
-        net, _, i = key.partition(":")
-        for name in [f"actor_{i}"] if net == "actor" else [f"q1_{i}", f"q2_{i}"]:
-            widths[name] = w
-    return widths
+    return {
+        name: w
+        for key, w in sac.bottleneck_widths(spec).items()
+        for name in sac.layers_of_width(key)
+    }
 
 
 def _pad_last(a: np.ndarray, n: int) -> np.ndarray:

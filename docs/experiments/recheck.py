@@ -15,10 +15,11 @@ evaluation. And the true policy sizes: `n_params` over the full-rank factorised 
 (Hopper 9,219, Walker2d 9,798), not over `n_params_full`, which older runs counted at the
 compacted width.
 
-Self-contained (NumPy, SciPy, the standard library), so it runs without adarl. adarl's own
-`adarl/evaluation/stats.py` on main has no Welch or power functions yet; branch `wip-stats`
-(commit 509aca3) adds `welch_difference_ci`, `minimum_detectable_difference` and
-`seeds_per_arm`, which give the same 847 / 32 (Hopper) and 539 / 14 (Walker2d) for AdaRL − SAC.
+Self-contained on purpose (NumPy, SciPy, the standard library): it runs without adarl and is
+an independent check of `adarl.evaluation.stats` (`welch_difference_ci`,
+`minimum_detectable_difference`, `seeds_per_arm`, written after this script), which give the same
+847 / 32 (Hopper) and 539 / 14 (Walker2d) for AdaRL − SAC. The later experiment scripts
+(mechanism.py, physics_power.py, paper_schedule.py) use adarl's functions.
 
 
     python docs/experiments/recheck.py          # writes docs/experiments/recheck.md

@@ -260,7 +260,8 @@ def test_export_matches_the_jax_policy():
     arrays = sac.export_policy(spec, state["actor"], state["masks"]["actor"])
     policy = NumpyPolicy(arrays)
     obs = np.random.default_rng(3).normal(size=(16, OBS)).astype(np.float32)
-    expected = np.asarray(sac.act(spec, state["actor"], state["masks"]["actor"], obs, None, True))
+    mu, _ = sac.actor_forward(spec, state["actor"], state["masks"]["actor"], obs)
+    expected = np.asarray(sac.squash(spec, mu))  # the deterministic action, tanh(μ) rescaled
     np.testing.assert_allclose(policy(obs), expected, rtol=1e-5, atol=1e-6)
     r = int(state["masks"]["actor"][1].sum())
     assert arrays["l1_w1"].shape == (64, r)
@@ -310,6 +311,14 @@ def test_bad_config_is_a_one_line_error(bad, message):
     with pytest.raises(UsageError, match=message) as err:
         sac_config.SACConfig(**bad).validate()
     assert "\n" not in str(err.value)
+
+
+def test_each_width_key_names_the_bottlenecks_stored_at_it(adarl_run):
+    spec, _, _ = adarl_run
+    assert sac.layers_of_width("actor:1") == ["actor_1"]
+    assert sac.layers_of_width("critic:3") == ["q1_3", "q2_3"]
+    names = [n for key in sac.bottleneck_widths(spec) for n in sac.layers_of_width(key)]
+    assert sorted(names) == sorted(sac.bottleneck_names(spec.config))
 
 
 def test_narrowing_bottlenecks_keeps_the_networks_function(adarl_run):
