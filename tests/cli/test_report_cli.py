@@ -218,7 +218,7 @@ def test_rerun_replaces_a_previous_report(tmp_path, no_figures):
 @pytest.fixture
 def no_figures(monkeypatch):
     """Skip drawing (the slow part) in tests about folders, not figures."""
-    monkeypatch.setattr(report, "_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(report.common, "_figure", lambda folder, fig, stem: [])
 
 
 def _fails(argv, capsys, fragment):
@@ -275,7 +275,7 @@ def test_a_failure_midway_leaves_the_previous_report_untouched(tmp_path, monkeyp
     def boom(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(report, "policy_size_section", boom)
+    monkeypatch.setattr(report.build, "policy_size_section", boom)
     with pytest.raises(RuntimeError):
         main(["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "20"])
     assert (out / "index.md").read_text() == before

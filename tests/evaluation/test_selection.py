@@ -22,7 +22,7 @@ PHRASE = "best of 3 values of parseval_coef (selected on the reported metric, as
 
 @pytest.fixture
 def no_figures(monkeypatch):
-    monkeypatch.setattr(report, "_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(report.common, "_figure", lambda folder, fig, stem: [])
 
 
 @pytest.fixture
