@@ -47,7 +47,7 @@ class Algorithm:
     # its original reports each seed's best checkpoint by evaluation: `adarl report
     # --best-checkpoint best` scores it there (the loop keeps every algorithm's best policy,
     # docs/run-format.md; the other algorithms are always scored at their final checkpoint)
-    best_policy: bool = False
+    best_checkpoint: bool = False
     # the method's name in reports, from a run's config (`value(field, default)`): variants apart
     report_label: Callable[[Callable], str] | None = None
     # --- roles in the paper's protocol, read by the report
@@ -127,7 +127,7 @@ ALGORITHMS: dict[str, Algorithm] = {
         task_defaults={},
         presets=rnac_config.PRESETS,
         default_preset="default",
-        best_policy=True,
+        best_checkpoint=True,
     ),
 }
 ALGOS: tuple[str, ...] = tuple(ALGORITHMS)
@@ -154,9 +154,10 @@ def report_label(values: Mapping, value: Callable | None = None) -> str:
     return entry.report_label(value) if entry and entry.report_label else algo
 
 
-def keeps_best_policy(algo: str) -> bool:
+def reports_best_checkpoint(algo: str) -> bool:
+    """May `adarl report --best-checkpoint best` score `algo` at each seed's best checkpoint?"""
     entry = ALGORITHMS.get(algo)
-    return bool(entry and entry.best_policy)
+    return bool(entry and entry.best_checkpoint)
 
 
 def role(algo: str, name: str):

@@ -6,7 +6,7 @@
   family on a report's long scores (`task, method, seed, score, run`): per task, the value whose
   runs have the highest mean final return (the Table 1 cell), under one label.
 * **Best checkpoint.** An algorithm whose original reports each seed's best checkpoint by
-  evaluation (the registry's `best_policy`: RNAC) is scored at its final checkpoint, or at its
+  evaluation (the registry's `best_checkpoint`: RNAC) is scored at its final checkpoint, or at its
   best with `adarl report --best-checkpoint best`; `collect.best_scores` reads the best policy
   the loop keeps for every run.
 """

@@ -248,7 +248,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     if best:
         runs = [
             replace(r, label=f"{r.label} ({selection.BEST_CHECKPOINT_LABEL})")
-            if registry.keeps_best_policy(r.algo)
+            if registry.reports_best_checkpoint(r.algo)
             else r
             for r in runs
         ]
@@ -257,7 +257,7 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
     fixed = [r for r in runs if registry.role(r.algo, "rank_sweep")]
     main = [r for r in runs if not registry.role(r.algo, "rank_sweep")] or fixed
     finals = {
-        r.path: run_scores(r, options.last_k, best and registry.keeps_best_policy(r.algo))
+        r.path: run_scores(r, options.last_k, best and registry.reports_best_checkpoint(r.algo))
         for r in runs
     }
     for r in runs:

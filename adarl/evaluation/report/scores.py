@@ -299,7 +299,9 @@ def protocol_notes(
                 f"{label}: {selection.BEST_OF_NOTE.format(n=n, field=family.field)}; chosen "
                 f"{family.field}: {picks}; every value: tables/{family.table_stem}.md."
             )
-    kept = ", ".join(sort_methods(r.label for r in runs if registry.keeps_best_policy(r.algo)))
+    kept = ", ".join(
+        sort_methods(r.label for r in runs if registry.reports_best_checkpoint(r.algo))
+    )
     if kept and options.best_checkpoint == "best":
         lines.append(f"{kept}: {selection.BEST_CHECKPOINT_NOTE}.")
     elif kept:
