@@ -65,12 +65,12 @@ def _steps(first: float, last: float) -> str:
     return f"{first:,.0f}" if first == last else f"{first:,.0f}–{last:,.0f}"
 
 
-def final_sources(scored) -> str:
+def final_sources(scored: list[Scored]) -> str:
     """Where the final-checkpoint scores came from, in a few words: `adarl evaluate` (with its
     episodes) and/or the last evaluation in eval.csv."""
     kinds = []
     for item in scored:
-        source = item[2] if len(item) > 2 else ""
+        source = item.final_source
         if source.startswith("`adarl evaluate`"):
             kinds.append(source.split(",")[0].replace(" (", ", "))
         elif source.startswith(EVAL_CSV):
@@ -182,8 +182,8 @@ def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
                 "budget (steps per seed)": r.total_steps,
                 "final checkpoint": last,
                 "finished": "yes" if r.done_step is not None else "no",
-                "score from": finals[r.path][1],
-                "final checkpoint from": finals[r.path][2] if len(finals[r.path]) > 2 else "",
+                "score from": finals[r.path].source,
+                "final checkpoint from": finals[r.path].final_source,
             }
         )
     df = pd.DataFrame(rows)
