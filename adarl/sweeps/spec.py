@@ -1,9 +1,9 @@
 """Sweep files: parse a YAML spec (or a shipped preset), check everything, expand it into units.
 
 A unit is one task × one algorithm entry × one group of seeds: exactly one training run, whose
-seeds train together in one process (each in its own lane). Each unit carries the config it trains, resolved as
-`adarl train` resolves its flags (`registry.resolve_config`), so a bad spec fails here, with a
-one-line `UsageError`, before anything starts. The format is documented in docs/sweeps.md.
+seeds train together in one process (each in its own lane). Each unit carries the config it
+trains, resolved as `adarl train` resolves its flags (`registry.resolve_config`), so a bad spec
+fails here, with a one-line `UsageError`, before anything starts. The format is documented in docs/sweeps.md.
 """
 
 from __future__ import annotations
