@@ -10,6 +10,7 @@ Bands over seeds are Student-t 95% confidence intervals of the mean (`stats.t_in
 from __future__ import annotations
 
 import functools
+import io
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from adarl.algos import registry
 from adarl.evaluation.collect import Spectrum
 from adarl.evaluation.runs import sort_methods
 from adarl.evaluation.stats import t_interval
+from adarl.files import atomic_write_bytes
 
 FULL_WIDTH = 7.0
 COLUMN_WIDTH = 3.4
@@ -56,14 +58,18 @@ def styled(func):
 
 
 def save_figure(fig: Figure, stem: Path) -> list[Path]:
-    """Write `stem.png` and `stem.pdf`; returns both paths."""
+    """Write `stem.png` and `stem.pdf`, each atomically; returns both paths."""
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = []
     with matplotlib.rc_context(STYLE):
-        for suffix in (".png", ".pdf"):
-            path = stem.parent / (stem.name + suffix)  # not with_suffix: names may hold dots
-            fig.savefig(path, metadata={"CreationDate": None} if suffix == ".pdf" else None)
+        for suffix in ("png", "pdf"):
+            path = stem.parent / f"{stem.name}.{suffix}"  # not with_suffix: names may hold dots
+            buffer = io.BytesIO()
+            fig.savefig(
+                buffer, format=suffix, metadata={"CreationDate": None} if suffix == "pdf" else None
+            )
+            atomic_write_bytes(path, buffer.getvalue())
             fig.set_layout_engine("none")  # laid out once by the first save; keep it (faster)
             paths.append(path)
     return paths

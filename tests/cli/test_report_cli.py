@@ -218,7 +218,7 @@ def test_rerun_replaces_a_previous_report(tmp_path, no_figures):
 @pytest.fixture
 def no_figures(monkeypatch):
     """Skip drawing (the slow part) in tests about folders, not figures."""
-    monkeypatch.setattr(report.common, "_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(report.common, "save_figure", lambda folder, fig, stem: [])
 
 
 def _fails(argv, capsys, fragment):

@@ -208,7 +208,7 @@ def test_report_flag_writes_the_report_and_the_summary_names_it(tmp_path, capsys
     from adarl.evaluation import report
 
     # drawing: tested apart
-    monkeypatch.setattr(report.common, "_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(report.common, "save_figure", lambda folder, fig, stem: [])
     run_dir = tmp_path / "r"
     argv = ["train", "--preset", "smoke", "--algo", "sac", "--out", str(run_dir), "--no-progress"]
     assert main([*argv, "--report"]) == 0
@@ -235,7 +235,7 @@ def test_resuming_a_run_of_a_reporting_preset_writes_its_report(tmp_path, monkey
     from adarl.evaluation import report
 
     # drawing: tested apart
-    monkeypatch.setattr(report.common, "_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(report.common, "save_figure", lambda folder, fig, stem: [])
     run_dir = tmp_path / "r"
     argv = ["train", "--preset", "smoke", "--algo", "sac", "--out", str(run_dir), "--no-progress"]
     monkeypatch.setattr(sys, "argv", ["adarl", *argv])  # what the run records as its command

@@ -22,7 +22,7 @@ PHRASE = "best of 3 values of parseval_coef (selected on the reported metric, as
 
 @pytest.fixture
 def no_figures(monkeypatch):
-    monkeypatch.setattr(report.common, "_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(report.common, "save_figure", lambda folder, fig, stem: [])
 
 
 @pytest.fixture
@@ -44,7 +44,7 @@ def sweep(tmp_path):
 
 def _scores(runs):
     finals = {r.path: collect.final_scores(r) for r in runs}
-    return report._long_scores(runs, finals)
+    return report.long_scores(runs, finals)
 
 
 def test_selection_picks_the_best_coefficient_per_task(sweep):

@@ -25,7 +25,7 @@ from adarl.evaluation.report.common import (
     ReportOptions,
     ScoreNote,
     Section,
-    _write,
+    write_file,
 )
 from adarl.evaluation.report.comparisons import contrast_groups, contrast_section, control_section
 from adarl.evaluation.report.ranks import (
@@ -39,12 +39,12 @@ from adarl.evaluation.report.ranks import (
 from adarl.evaluation.report.robustness import robustness_section, suites_section
 from adarl.evaluation.report.scores import (
     SCORES_CSV,
-    _long_scores,
     behaviour_section,
     best_of_section,
     environment_section,
     few_evaluations_notes,
     final_sources,
+    long_scores,
     protocol_notes,
     run_scores,
     runs_section,
@@ -174,7 +174,7 @@ def write_scores_report(
     lines += ["", "## Commands", "", "```sh", options.command or "adarl report …", "```"]
     if notes:
         lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
-    _write(folder, INDEX, "\n".join(lines) + "\n")
+    write_file(folder, INDEX, "\n".join(lines) + "\n")
 
 
 def check_output(out: Path) -> None:
@@ -266,15 +266,15 @@ def write_report(runs: list[Run], folder: Path, options: ReportOptions, notes: l
                 f"{r.path} has no nominal evaluation (neither `adarl evaluate --dynamics nominal` "
                 "of its final checkpoint nor `nominal` rows in eval.csv); it is left out of the tables."
             )
-    chosen = selection.select_best_of(main, _long_scores(main, finals))
+    chosen = selection.select_best_of(main, long_scores(main, finals))
     scores = chosen.scores
     notes += chosen.notes
-    notes += few_evaluations_notes(_long_scores(runs, finals), options.last_k)
+    notes += few_evaluations_notes(long_scores(runs, finals), options.last_k)
     colours = figures.method_colours([r.label for r in runs] + chosen.labels)
     score_note = ScoreNote(score_line(scores, options.last_k), final_sources(finals.values()))
 
     sections = [runs_section(runs, finals, folder)]
-    sections.append(scores_section(_long_scores(runs, finals), scores, finals, options, folder))
+    sections.append(scores_section(long_scores(runs, finals), scores, finals, options, folder))
     sections.append(
         table1_section(scores, folder, protocol_notes(runs, chosen, options), score_note)
     )
@@ -332,7 +332,7 @@ def write_index(
         notes = [*notes, f"Not shown (nothing to show for these runs): {', '.join(hidden)}."]
     if notes:
         lines += ["", "## Notes", ""] + [f"- {n}" for n in notes]
-    _write(folder, INDEX, "\n".join(lines) + "\n")
+    write_file(folder, INDEX, "\n".join(lines) + "\n")
 
 
 def _section_lines(folder: Path, sections: list[Section]) -> list[str]:

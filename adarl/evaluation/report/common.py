@@ -72,47 +72,54 @@ class Scored(NamedTuple):
     final_source: str = ""
 
 
-def _write(folder: Path, name: str, text: str) -> Path:
+def final_checkpoint_scores(scores: pd.DataFrame) -> pd.DataFrame:
+    """`scores` with the final checkpoint's score as `score` (seeds without one dropped)."""
+    if "final" not in scores:
+        return scores.iloc[0:0]
+    return scores.assign(score=scores["final"]).dropna(subset=["score"])
+
+
+def write_file(folder: Path, name: str, text: str) -> Path:
     path = folder / name
     path.write_text(text, encoding="utf-8")
     return path
 
 
-def _figure(folder: Path, fig, stem: str) -> list[Path]:
-    """`fig` saved as figures/<stem>.{png,pdf}. The sections call it as `common._figure`, so a
+def save_figure(folder: Path, fig, stem: str) -> list[Path]:
+    """`fig` saved as figures/<stem>.{png,pdf}. The sections call it as `common.save_figure`, so a
     test can skip drawing by replacing it here."""
-    return figures.save_figure(fig, folder / "figures" / _slug(stem))
+    return figures.save_figure(fig, folder / "figures" / slug(stem))
 
 
-def _slug(text: str) -> str:
+def slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-")
 
 
-def _csv(df: pd.DataFrame) -> str:
+def csv_text(df: pd.DataFrame) -> str:
     return df.to_csv(index=False, float_format="%.6g")
 
 
-def _ci(low: float, high: float, digits: int) -> str:
+def ci_text(low: float, high: float, digits: int) -> str:
     """`[low, high]`, or a dash where there is no interval (one seed)."""
     if not (np.isfinite(low) and np.isfinite(high)):
         return tables.DASH
     return f"[{low:.{digits}f}, {high:.{digits}f}]"
 
 
-def _interval(point: float, low: float, high: float, digits: int) -> tuple[str, str]:
-    return f"{point:.{digits}f}", _ci(low, high, digits)
+def interval_text(point: float, low: float, high: float, digits: int) -> tuple[str, str]:
+    return f"{point:.{digits}f}", ci_text(low, high, digits)
 
 
-def _p(value: float) -> str:
+def p_text(value: float) -> str:
     return f"{value:.3f}" if np.isfinite(value) else tables.DASH
 
 
-def _rounded(value: float) -> str:
+def rounded(value: float) -> str:
     """A whole number with thousands separators (a detectable difference, seeds needed), or a
     dash where there is none."""
     return f"{value:,.0f}" if np.isfinite(value) else tables.DASH
 
 
-def _number(value: float) -> str:
+def number_text(value: float) -> str:
     """One decimal, or a dash where a method lacks the ring (runs evaluated on other grids)."""
     return f"{value:.1f}" if np.isfinite(value) else tables.DASH

@@ -15,14 +15,14 @@ from adarl.evaluation import compare, stats, tables
 from adarl.evaluation.report.common import (
     ReportOptions,
     Section,
-    _ci,
-    _csv,
-    _p,
-    _rounded,
-    _slug,
-    _write,
+    ci_text,
+    csv_text,
+    p_text,
+    rounded,
+    slug,
+    write_file,
 )
-from adarl.evaluation.report.statistics import _power_text
+from adarl.evaluation.report.statistics import power_text
 from adarl.evaluation.runs import (
     LAUNCH_KEYS,
     Run,
@@ -108,8 +108,8 @@ def contrast_section(
     df = pd.DataFrame(rows)
     if not df.empty:
         df = df.rename(columns={"low": "ci low", "high": "ci high", "p_value": "p"})
-    stem = f"tables/contrast_{_slug(field)}"
-    files = [_write(folder, f"{stem}.csv", _csv(df))]
+    stem = f"tables/contrast_{slug(field)}"
+    files = [write_file(folder, f"{stem}.csv", csv_text(df))]
     if df.empty:
         return Section(f"Contrast: {field}", f"No pair of runs differs only in `{field}`.", files)
     pct, level = int(round(100 * options.confidence)), f"{options.power:.0%}"
@@ -120,17 +120,17 @@ def contrast_section(
         [
             [r["task"], r["method"], r["held fixed"], r["contrast"],
              f"{r[f'mean ({reference})']:.1f}", f"{r['mean (other)']:.1f}",
-             f"{r['difference']:.1f} {_ci(r['ci low'], r['ci high'], 1)}".replace(f" {tables.DASH}", ""),
-             _p(r["p"]), r["seeds"], _rounded(r["detectable"]), _rounded(r["seeds_for_target"])]
+             f"{r['difference']:.1f} {ci_text(r['ci low'], r['ci high'], 1)}".replace(f" {tables.DASH}", ""),
+             p_text(r["p"]), r["seeds"], rounded(r["detectable"]), rounded(r["seeds_for_target"])]
             for r in df.to_dict("records")
         ],
     )  # fmt: skip
-    files.append(_write(folder, f"{stem}.md", md))
+    files.append(write_file(folder, f"{stem}.md", md))
     text = (
         f"Score with `{field}` set to each value minus the same runs' setting at `{reference}`, "
         f"everything else equal; {pct}% Welch t interval over seeds (each side's seeds "
         "independent). An interval that contains 0 shows no difference at this number of "
-        "seeds.\n\n" + md + "\n" + _power_text(options) + "\n"
+        "seeds.\n\n" + md + "\n" + power_text(options) + "\n"
     )
     return Section(f"Contrast: {field}", text, files)
 
@@ -211,7 +211,7 @@ def control_section(
     title = "AdaRL against its control"
     if not summary:
         return Section(title, "No control run has an AdaRL run with the same settings and seeds.\n")
-    files = [_write(folder, "tables/control_pairs.csv", _csv(pd.DataFrame(rows)))]
+    files = [write_file(folder, "tables/control_pairs.csv", csv_text(pd.DataFrame(rows)))]
     md = tables.markdown_table(
         ["task", "method", "control", "paired seeds", "mean (method)", "mean (control)",
          f"method − control [{pct}% t CI]", "sign-flip p",
@@ -219,7 +219,7 @@ def control_section(
          f"pairs for {options.target_difference:g}"],
         summary,
     )  # fmt: skip
-    files.append(_write(folder, "tables/control_pairs.md", md))
+    files.append(write_file(folder, "tables/control_pairs.md", md))
     text = (
         "The score (as Table 1) of AdaRL minus its schedule-matched control (the same "
         "truncations, resets and warm-ups, no component removed), seed by seed: a control seed is "

@@ -12,7 +12,7 @@ from adarl.algos import registry
 from adarl.errors import UsageError
 from adarl.evaluation import collect, figures, tables
 from adarl.evaluation.report import common
-from adarl.evaluation.report.common import REFERENCE, Section, _csv, _slug, _write
+from adarl.evaluation.report.common import REFERENCE, Section, csv_text, slug, write_file
 from adarl.evaluation.runs import Run, config_value, sort_tasks
 
 
@@ -45,7 +45,7 @@ def training_section(runs: list[Run], folder: Path, colours) -> Section:
     fig = figures.training_curves(
         merged, {t: sorted(truncations.get(t, ())) for t in tasks}, colours
     )
-    files = common._figure(folder, fig, "training_curves")
+    files = common.save_figure(folder, fig, "training_curves")
     text = (
         "Return over training (source: " + "; ".join(sorted(sources)) + "), mean over seeds with a "
         "95% t band; red dashed lines mark the steps at which rank-adaptive runs truncated.\n"
@@ -59,20 +59,21 @@ def rank_section(runs: list[Run], folder: Path) -> Section:
         history, steps = collect.rank_history(r), collect.truncation_steps(r)
         if history.empty or not steps:
             continue
-        fig = figures.rank_trajectories(history, intrinsic_rank(r), f"{r.task} {r.label}", steps)
-        files += common._figure(folder, fig, f"ranks_{r.task}_{r.label}")
+        intrinsic = intrinsic_rank(r)
+        fig = figures.rank_trajectories(history, intrinsic, f"{r.task} {r.label}", steps)
+        files += common.save_figure(folder, fig, f"ranks_{r.task}_{r.label}")
         final = collect.final_ranks(r)
         per_layer = final.groupby("layer")["rank"].agg(lambda s: " ".join(str(int(v)) for v in s))
         lines.append(
             f"- {r.task} {r.label} ({r.path}): final rank per seed — "
             + "; ".join(f"{layer}: {ranks}" for layer, ranks in per_layer.items())
-            + f"; intrinsic rank 2·d_a+1 = {intrinsic_rank(r)}"
+            + f"; intrinsic rank 2·d_a+1 = {intrinsic}"
         )
     if not files:
         return Section("Rank over training", "No rank-adaptive runs.\n", empty=True)
     table, md = settling_table(runs)
-    files.append(_write(folder, "tables/rank_settling.md", md))
-    files.append(_write(folder, "tables/rank_settling.csv", _csv(table)))
+    files.append(write_file(folder, "tables/rank_settling.md", md))
+    files.append(write_file(folder, "tables/rank_settling.csv", csv_text(table)))
     text = (
         "Estimated rank of each bottleneck, per seed; dotted line: 2·d_a+1.\n\n"
         + "\n".join(lines)
@@ -165,18 +166,18 @@ def bias_variance_section(fixed: list[Run], runs: list[Run], finals: dict, folde
         fig = figures.bias_variance(
             data, ranks or None, adarl_scores or None, intrinsic, f"{task}: return against rank"
         )
-        files += common._figure(folder, fig, f"bias_variance_{task}")
+        files += common.save_figure(folder, fig, f"bias_variance_{task}")
         table = tables.score_table(
             data.assign(task=task, method=data["rank"].map(lambda k: f"r={k}"))
         )
         rows = [[f"r={k}", table.cell(task, f"r={k}")] for k in sorted(data["rank"].unique())]
         md = tables.markdown_table(["rank", f"{task}: score"], rows)
         texts.append(md)
-        files.append(_write(folder, f"tables/fixed_rank_{_slug(task)}.md", md))
+        files.append(write_file(folder, f"tables/fixed_rank_{slug(task)}.md", md))
         files.append(
-            _write(
+            write_file(
                 folder,
-                f"tables/fixed_rank_{_slug(task)}.csv",
+                f"tables/fixed_rank_{slug(task)}.csv",
                 data.to_csv(index=False, float_format="%.6g"),
             )
         )
@@ -208,7 +209,7 @@ def ablation_section(runs: list[Run], folder: Path) -> Section:
         fig = figures.rank_rule_ablation(
             merged, intrinsic_rank(next(r for r in adarl if r.task == task)), task, sorted(steps)
         )
-        files += common._figure(folder, fig, f"rank_rule_ablation_{task}")
+        files += common.save_figure(folder, fig, f"rank_rule_ablation_{task}")
         for rule, h in merged.items():
             last = h.sort_values("step").groupby(["seed", "layer"])["rank"].last()
             per_layer = last.groupby("layer").mean()
@@ -235,7 +236,7 @@ def spectra_section(runs: list[Run], folder: Path) -> Section:
         found = collect.spectra(r)
         if found:
             fig = figures.singular_value_spectra(found, f"{r.task} {r.label}")
-            files += common._figure(folder, fig, f"spectra_{r.task}_{r.label}")
+            files += common.save_figure(folder, fig, f"spectra_{r.task}_{r.label}")
     text = (
         "Singular values of each bottleneck at each truncation (mean over seeds).\n"
         if files
@@ -269,8 +270,8 @@ def policy_size_section(runs: list[Run], folder: Path) -> Section:
         ["task", "method", "run", "full rank", "after adaptation", "kept"], rows
     )
     files = [
-        _write(folder, "tables/policy_size.csv", data.to_csv(index=False)),
-        _write(folder, "tables/policy_size.md", md),
+        write_file(folder, "tables/policy_size.csv", data.to_csv(index=False)),
+        write_file(folder, "tables/policy_size.md", md),
     ]
     text = (
         "Parameters of the deterministic policy (as exported by `adarl export`) at full rank and at the "

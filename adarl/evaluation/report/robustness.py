@@ -14,11 +14,11 @@ from adarl.evaluation.report import common
 from adarl.evaluation.report.common import (
     ReportOptions,
     Section,
-    _csv,
-    _interval,
-    _number,
-    _slug,
-    _write,
+    csv_text,
+    interval_text,
+    number_text,
+    slug,
+    write_file,
 )
 from adarl.evaluation.runs import Run, sort_methods, sort_tasks
 
@@ -69,7 +69,7 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
         data = pd.concat(groups[key], ignore_index=True)
         title = f"{task}: {param}" + (f" (held: {held[key]})" if held[key] else "")
         fig = figures.robustness_curve(data, param, title, nominal.get((task, param)), colours)
-        files += common._figure(folder, fig, f"robustness_{task}_{name}")
+        files += common.save_figure(folder, fig, f"robustness_{task}_{name}")
         lines.append(f"- {title}: {', '.join(sort_methods(data['method'].unique()))}")
     text = (
         "Return against each swept parameter (mean over seeds of each seed's mean over episodes, "
@@ -123,22 +123,22 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
             fig = figures.suite_heatmap(
                 *suites.heatmap_grid(table, x, y), x, y, f"{task}, {name}: {method}"
             )
-            files += common._figure(folder, fig, f"suite_{task}_{name}_{method}")
+            files += common.save_figure(folder, fig, f"suite_{task}_{name}_{method}")
     size_files, size_text = size_curves(found, keys, folder, options, colours)
     files += size_files
     df = pd.DataFrame(rows)
-    files.insert(0, _write(folder, "tables/suites.csv", _csv(df)))
+    files.insert(0, write_file(folder, "tables/suites.csv", csv_text(df)))
     md = tables.markdown_table(
         ["task", "suite", "method", "seeds", "points × episodes", "worst-case", f"{conf:.0%} CI",
          "average", f"{conf:.0%} CI"],
         [
             [row.task, row.suite, row.method, row.seeds, f"{row.points} × {row.episodes}",
-             *_interval(row.worst_mean, row.worst_low, row.worst_high, 1),
-             *_interval(row.average_mean, row.average_low, row.average_high, 1)]
+             *interval_text(row.worst_mean, row.worst_low, row.worst_high, 1),
+             *interval_text(row.average_mean, row.average_low, row.average_high, 1)]
             for row in df.itertuples()
         ],
     )  # fmt: skip
-    files.insert(1, _write(folder, "tables/suites.md", md))
+    files.insert(1, write_file(folder, "tables/suites.md", md))
     text = (
         "Per seed, the worst-case return is the lowest and the average return the mean, over "
         "the suite's grid points, of the mean return over each point's episodes (as M2TD3 and "
@@ -171,23 +171,23 @@ def size_curves(
         data = pd.concat(frames, ignore_index=True)
         stem = f"robustness_size_{task}_{name}"
         fig = figures.robustness_size_curve(data, f"{task}, suite {name}", colours)
-        files += common._figure(folder, fig, stem)
+        files += common.save_figure(folder, fig, stem)
         summary = perturbation.ring_summary(data, options.confidence)
         order = sort_methods(summary["method"].unique())
         summary = summary.sort_values(
             ["method", "ring"], key=lambda c: c.map(order.index) if c.name == "method" else c
         )
-        files.append(_write(folder, f"tables/{_slug(stem)}.csv", _csv(summary)))
+        files.append(write_file(folder, f"tables/{slug(stem)}.csv", csv_text(summary)))
         rings = perturbation.describe_rings(data)
         sizes = ", ".join(f"{ring:.3g} ({count})" for ring, count in rings.items())
-        lines.append(f"{task}, {name}: rings (grid points) {sizes}; `figures/{_slug(stem)}`\n")
+        lines.append(f"{task}, {name}: rings (grid points) {sizes}; `figures/{slug(stem)}`\n")
         cells = summary.pivot(index="method", columns="ring", values="mean_mean").loc[order]
         worst = summary.groupby("method")["worst_within_mean"].last().loc[order]
         lines.append(
             tables.markdown_table(
                 ["mean return at size", *(f"{ring:.3g}" for ring in cells.columns),
                  f"worst within {cells.columns[-1]:.3g}"],
-                [[m, *(_number(v) for v in cells.loc[m]), _number(worst[m])] for m in order],
+                [[m, *(number_text(v) for v in cells.loc[m]), number_text(worst[m])] for m in order],
             )
         )  # fmt: skip
     if not lines:

@@ -18,8 +18,9 @@ from adarl.evaluation.report.common import (
     Scored,
     ScoreNote,
     Section,
-    _csv,
-    _write,
+    csv_text,
+    final_checkpoint_scores,
+    write_file,
 )
 from adarl.evaluation.runs import Run, sort_methods
 from adarl.runs import provenance
@@ -50,7 +51,7 @@ def run_scores(run: Run, k: int, best: bool = False) -> Scored:
 SCORE_COLUMNS = ["seed", "score", "final", "evaluations", "first_step", "last_step", "episodes"]
 
 
-def _long_scores(runs: Sequence[Run], finals: dict) -> pd.DataFrame:
+def long_scores(runs: Sequence[Run], finals: dict) -> pd.DataFrame:
     frames = [
         finals[r.path][0].assign(task=r.task, method=r.label, run=str(r.path))
         for r in runs
@@ -155,7 +156,7 @@ def scores_section(
     columns = ["task", "method", "run", *SCORE_COLUMNS, "table1_method", "last_k", "score_from",
                "final_from"]  # fmt: skip
     # full precision: a report recomputed from this file gives the same tables
-    path = _write(
+    path = write_file(
         folder, f"tables/{SCORES_CSV}", scores.reindex(columns=columns).to_csv(index=False)
     )
     text = (
@@ -187,7 +188,7 @@ def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
             }
         )
     df = pd.DataFrame(rows)
-    path = _write(folder, "tables/runs.csv", df.to_csv(index=False))
+    path = write_file(folder, "tables/runs.csv", df.to_csv(index=False))
     text = tables.markdown_table(
         list(df.columns), df.astype(object).where(df.notna(), "—").values.tolist()
     )
@@ -195,13 +196,6 @@ def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
 
 
 TABLE1 = "Table 1: return under nominal dynamics"
-
-
-def _final_table(scores: pd.DataFrame) -> tables.ScoreTable | None:
-    """The final-checkpoint scores (`final` column) as a `ScoreTable`; None without them."""
-    if "final" not in scores or scores["final"].isna().all():
-        return None
-    return tables.score_table(scores.assign(score=scores["final"]).dropna(subset=["score"]))
 
 
 def table1_section(
@@ -215,7 +209,8 @@ def table1_section(
     the LaTeX caption and in the report text; `score_note` says what the score is."""
     if scores.empty:
         return Section(TABLE1, "No nominal evaluations found.\n")
-    table, final = tables.score_table(scores), _final_table(scores)
+    table, final = tables.score_table(scores), final_checkpoint_scores(scores)
+    final = None if final.empty else tables.score_table(final)
     caption = "Return under nominal dynamics, mean ± standard deviation over seeds."
     score = score_note.line(f"the rows “<task>, {tables.FINAL_ROW}”")
     legend = "".join(f"\n{line}\n" for line in [score, *labels] if line)
@@ -223,13 +218,13 @@ def table1_section(
     full_caption = full_caption.replace("`", "")
     md = tables.table_markdown(table, second=final)
     files = [
-        _write(folder, "tables/table1.md", md + legend),
-        _write(
+        write_file(folder, "tables/table1.md", md + legend),
+        write_file(
             folder,
             "tables/table1.tex",
             tables.table_latex(table, caption=full_caption, second=final),
         ),
-        _write(folder, "tables/table1.csv", tables.table_csv(table, second=final)),
+        write_file(folder, "tables/table1.csv", tables.table_csv(table, second=final)),
     ]
     text = (
         f"{caption} The best mean per task is in bold. Seeds per cell: "
@@ -265,7 +260,7 @@ def behaviour_section(runs: list[Run], folder: Path) -> Section:
         ["task", "method", "episode length", "forward distance (m)", "seeds that …"], rows
     )
     columns = ["task", "method", "seed", "length", "max_length", "distance", "does"]
-    path = _write(folder, "tables/behaviour.csv", _csv(df[columns]))
+    path = write_file(folder, "tables/behaviour.csv", csv_text(df[columns]))
     limits = sorted({int(v) for v in df["max_length"]})
     text = (
         f"Mean episode length (steps, of at most {'/'.join(f'{v:,}' for v in limits)}) and "
@@ -315,8 +310,8 @@ def protocol_notes(
 def best_of_section(family: selection.BestOf, folder: Path) -> Section:
     md = selection.best_of_markdown(family)
     files = [
-        _write(folder, f"tables/{family.table_stem}.md", md),
-        _write(folder, f"tables/{family.table_stem}.csv", _csv(family.cells)),
+        write_file(folder, f"tables/{family.table_stem}.md", md),
+        write_file(folder, f"tables/{family.table_stem}.csv", csv_text(family.cells)),
     ]
     text = (
         f"Score under nominal dynamics (Table 1's) of `{family.algo}` at each value of "
@@ -338,7 +333,7 @@ def environment_section(runs: list[Run], folder: Path, notes: list[str]) -> Sect
     stderr."""
     records = {str(r.path): provenance.read_environment(r.path) for r in runs}
     df = pd.DataFrame([{"run": run, **provenance.summary(rec)} for run, rec in records.items()])
-    path = _write(folder, "tables/environments.csv", df.to_csv(index=False))
+    path = write_file(folder, "tables/environments.csv", df.to_csv(index=False))
     for line in provenance.mismatches(records):
         notes.append(f"Warning: {line}.")
         print(f"adarl: warning: {line}", file=sys.stderr)

@@ -17,12 +17,13 @@ from adarl.evaluation.report.common import (
     ReportOptions,
     ScoreNote,
     Section,
-    _ci,
-    _csv,
-    _number,
-    _p,
-    _rounded,
-    _write,
+    ci_text,
+    csv_text,
+    final_checkpoint_scores,
+    number_text,
+    p_text,
+    rounded,
+    write_file,
 )
 from adarl.evaluation.runs import sort_methods
 
@@ -85,14 +86,7 @@ def statistics_sections(
     return sections
 
 
-def _final_scores(scores: pd.DataFrame) -> pd.DataFrame:
-    """`scores` with the final checkpoint's score as `score` (seeds without one dropped)."""
-    if "final" not in scores:
-        return scores.iloc[0:0]
-    return scores.assign(score=scores["final"]).dropna(subset=["score"])
-
-
-def _power_text(options: ReportOptions) -> str:
+def power_text(options: ReportOptions) -> str:
     level = f"{options.power:.0%}"
     return (
         f"**Power.** “detectable at {level}”: the smallest true difference of mean return that "
@@ -115,11 +109,9 @@ def aggregate_section(
 ) -> Section:
     reps, conf = options.bootstrap_reps, options.confidence
     estimates = compare.aggregate_estimates(normalised, reps, conf, options.seed)
-    final_scores = _final_scores(scores)
-    if not final_scores.empty:
-        final = compare.aggregate_estimates(
-            compare.normalise(final_scores), reps, conf, options.seed
-        )
+    at_final = final_checkpoint_scores(scores)
+    if not at_final.empty:
+        final = compare.aggregate_estimates(compare.normalise(at_final), reps, conf, options.seed)
         final = final.rename(
             columns={"point": "final_point", "low": "final_low", "high": "final_high"}
         )
@@ -134,14 +126,14 @@ def aggregate_section(
         f"{len(normalised.tasks)} task(s) and their seeds. Intervals: {conf:.0%} stratified "
         f"bootstrap ({reps} resamples, seed {options.seed}).\n\n"
     )
-    files = [_write(folder, "tables/aggregate.csv", _csv(estimates))]
+    files = [write_file(folder, "tables/aggregate.csv", csv_text(estimates))]
     rows = []
     for method, matrix in normalised.matrices.items():
         by_metric = estimates[estimates["method"] == method].set_index("metric")
         cells = [method]
         for metric in ("IQM", "Mean"):
             point, low, high = by_metric.loc[metric, ["point", "low", "high"]]
-            cells += [f"{point:.3f}", _ci(low, high, 3) if matrix.shape[0] > 1 else tables.DASH]
+            cells += [f"{point:.3f}", ci_text(low, high, 3) if matrix.shape[0] > 1 else tables.DASH]
         for metric in ("IQM", "Mean"):
             value = by_metric.loc[metric].get("final_point", np.nan)
             cells.append(f"{value:.3f}" if np.isfinite(value) else tables.DASH)
@@ -151,8 +143,10 @@ def aggregate_section(
     md = tables.markdown_table(header, rows)
     line = score_note.line("the columns “…, final checkpoint” (intervals in aggregate.csv)")
     line = f"\n{line}\n" if line else ""
-    files.append(_write(folder, "tables/aggregate.md", md + line))
-    files += common._figure(folder, figures.aggregate_intervals(estimates), "aggregate_iqm_mean")
+    files.append(write_file(folder, "tables/aggregate.md", md + line))
+    files += common.save_figure(
+        folder, figures.aggregate_intervals(estimates), "aggregate_iqm_mean"
+    )
     return Section(title, text + md + line, files)
 
 
@@ -165,13 +159,15 @@ def per_task_section(
     rows = []
     for r in estimates.itertuples():
         final = (
-            f"{r.final_mean:.1f} {_ci(r.final_low, r.final_high, 1)}".replace(f" {tables.DASH}", "")
+            f"{r.final_mean:.1f} {ci_text(r.final_low, r.final_high, 1)}".replace(
+                f" {tables.DASH}", ""
+            )
             if has_final and np.isfinite(r.final_mean)
             else tables.DASH
         )
         rows.append(
-            [r.task, r.method, r.seeds, f"{r.mean:.1f}", _ci(r.mean_low, r.mean_high, 1),
-             _number(r.sd), f"{r.iqm:.1f}", final]
+            [r.task, r.method, r.seeds, f"{r.mean:.1f}", ci_text(r.mean_low, r.mean_high, 1),
+             number_text(r.sd), f"{r.iqm:.1f}", final]
         )  # fmt: skip
     header = ["task", "method", "seeds", "mean", f"{conf:.0%} CI (t)", "sd", "IQM",
               f"final checkpoint [{conf:.0%} CI]"]  # fmt: skip
@@ -179,8 +175,8 @@ def per_task_section(
     line = score_note.line("the column “final checkpoint”")
     line = f"\n{line}\n" if line else ""
     files = [
-        _write(folder, "tables/per_task.csv", _csv(estimates)),
-        _write(folder, "tables/per_task.md", md + line),
+        write_file(folder, "tables/per_task.csv", csv_text(estimates)),
+        write_file(folder, "tables/per_task.md", md + line),
     ]
     text = (
         "Mean score over seeds per task and method with its Student-t interval "
@@ -196,22 +192,22 @@ def differences_section(differences: pd.DataFrame, folder: Path, options: Report
     conf, level, target = options.confidence, f"{options.power:.0%}", options.target_difference
     rows = [
         [r.task, f"{REFERENCE} − {r.baseline}", r.seeds,
-         f"{r.difference:.1f} {_ci(r.low, r.high, 1)}".replace(f" {tables.DASH}", ""),
-         _p(r.p_value), _rounded(r.detectable), _rounded(r.seeds_for_target)]
+         f"{r.difference:.1f} {ci_text(r.low, r.high, 1)}".replace(f" {tables.DASH}", ""),
+         p_text(r.p_value), rounded(r.detectable), rounded(r.seeds_for_target)]
         for r in differences.itertuples()
     ]  # fmt: skip
     header = ["task", "comparison", "seeds", f"difference [{conf:.0%} CI, Welch]", "p",
               f"detectable at {level}", f"seeds for {target:g}"]  # fmt: skip
     md = tables.markdown_table(header, rows)
     files = [
-        _write(folder, "tables/differences.csv", _csv(differences)),
-        _write(folder, "tables/differences.md", md),
+        write_file(folder, "tables/differences.csv", csv_text(differences)),
+        write_file(folder, "tables/differences.md", md),
     ]
     text = (
         f"Mean score of {REFERENCE} minus each baseline's on the same task, with Welch's t "
         "interval (each method's seeds independent; `stats.welch_difference_ci`). An interval "
         "that contains 0 shows no difference at these seeds.\n\n"
-        + md + "\n" + _power_text(options) + "\n"
+        + md + "\n" + power_text(options) + "\n"
     )  # fmt: skip
     return Section(f"Differences from {REFERENCE} per task", text, files)
 
@@ -236,9 +232,9 @@ def improvement_section(
 
     rows = [
         [f"{REFERENCE} > {r.baseline}", r.tasks, r.seeds, f"{r.point:.3f}",
-         _ci(r.low, r.high, 3) if r.min_seeds > 1 else tables.DASH,
-         per_task(r.baseline, "detectable", _rounded),
-         per_task(r.baseline, "seeds_for_target", _rounded)]
+         ci_text(r.low, r.high, 3) if r.min_seeds > 1 else tables.DASH,
+         per_task(r.baseline, "detectable", rounded),
+         per_task(r.baseline, "seeds_for_target", rounded)]
         for r in estimates.itertuples()
     ]  # fmt: skip
     md = tables.markdown_table(
@@ -254,11 +250,13 @@ def improvement_section(
         f"{md}"
     )
     files = [
-        _write(folder, "tables/probability_of_improvement.csv", _csv(estimates)),
-        _write(folder, "tables/probability_of_improvement.md", md),
+        write_file(folder, "tables/probability_of_improvement.csv", csv_text(estimates)),
+        write_file(folder, "tables/probability_of_improvement.md", md),
     ]
     fig = figures.probability_of_improvement(estimates, REFERENCE)
-    return Section(title, text, files + common._figure(folder, fig, "probability_of_improvement"))
+    return Section(
+        title, text, files + common.save_figure(folder, fig, "probability_of_improvement")
+    )
 
 
 def profile_section(
@@ -272,8 +270,8 @@ def profile_section(
     frame = pd.DataFrame({"tau": taus})
     for m, (p, lo, hi) in profiles.items():
         frame[m], frame[f"{m} low"], frame[f"{m} high"] = p, lo, hi
-    files = [_write(folder, "tables/performance_profiles.csv", _csv(frame))]
-    files += common._figure(
+    files = [write_file(folder, "tables/performance_profiles.csv", csv_text(frame))]
+    files += common.save_figure(
         folder, figures.performance_profiles(taus, profiles), "performance_profiles"
     )
     text = (
