@@ -1,4 +1,4 @@
-"""Tables of a milestone of docs/experiments/paper-schedule-hopper.md from the sweep's run folders:
+"""Tables of a milestone of docs/experiments/paper-schedule-<task>.md from the sweep's run folders:
 the ranks Eq. 5 proposed at each cut logged so far (applied by AdaRL; logged and not applied by the
 control, whose networks differ after the first cut), that the control shares AdaRL's prefix
 bit for bit, and each seed's score at the milestone (the mean of its last 5 nominal evaluations
@@ -6,6 +6,7 @@ at steps up to it) in the three arms, with the paired AdaRL − control test, th
 test and their power. An arm that has not reached the milestone is named and left out.
 
     python docs/experiments/paper_schedule.py results/paper-schedule-hopper 2000000
+    python docs/experiments/paper_schedule.py results/paper-schedule-walker2d 1000000
 """
 
 from __future__ import annotations

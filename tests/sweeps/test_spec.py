@@ -98,6 +98,7 @@ def test_presets_expand_to_the_documented_protocols():
         "mechanism-hopper",
         "mechanism-walker2d",
         "paper-schedule-hopper",
+        "paper-schedule-walker2d",
         "physics-power",
         "fixed-rank-power",
         "claim2-first-look",
@@ -236,13 +237,19 @@ def test_the_campaign_presets():
         assert (adarl.start_steps, adarl.buffer_size) == (10_000, 1_000_000)
         assert [u.fork_step for u in units[2:]] == [300_950, 300_950]
         assert units[2].fork_of == units[0].id and control.rank_rule == "cumulative"
-    paper = spec.load("paper-schedule-hopper").units
-    assert [u.algo for u in paper] == ["adarl", "adarl-control", "sac"]
-    assert all(u.seeds == (0, 1, 2, 3, 4) and u.total_steps == 3_000_000 for u in paper)
-    assert paper[1].fork_step == 1_000_950 and paper[0].config.truncate_every == 1_000_000
-    assert {(u.config.eval_every, u.config.start_steps, u.config.buffer_size) for u in paper} == {
-        (50_000, 10_000, 1_000_000)
-    }
+    for task, d_t in (("hopper", 1_000_000), ("walker2d", 700_000)):  # the paper's d_t
+        paper = spec.load(f"paper-schedule-{task}").units
+        assert [(u.task, u.algo) for u in paper] == [
+            (task, "adarl"), (task, "adarl-control"), (task, "sac")
+        ]  # fmt: skip
+        assert all(u.seeds == (0, 1, 2, 3, 4) and u.total_steps == 3_000_000 for u in paper)
+        # the first cut: d_t updates from step 1,000 (update_after), 50 every 50 steps
+        assert paper[1].fork_step == d_t + 950 and paper[0].config.truncate_every == d_t
+        assert paper[1].fork_of == paper[0].id and paper[0].config.rank_rule == "cumulative"
+        assert {
+            (u.config.eval_every, u.config.start_steps, u.config.buffer_size, u.config.dynamics)
+            for u in paper
+        } == {(50_000, 10_000, 1_000_000, "paper")}
     physics = spec.load("physics-power").units
     assert sorted({(u.config.dynamics, u.config.physics, u.config.model_version) for u in physics}) == [
         ("ompo", "ompo", "v4"), ("paper", "consistent", "v5"), ("paper", "ompo", "v5")
@@ -254,6 +261,12 @@ def test_the_campaign_presets():
         (r, s) for r in (7, 13, 64) for s in ((0, 1, 2, 3, 4), (5, 6, 7, 8, 9))
     ]
     assert {u.total_steps for u in fixed} == {300_000}
-    for name in ("mechanism-hopper", "paper-schedule-hopper", "physics-power", "fixed-rank-power"):
+    for name in (
+        "mechanism-hopper",
+        "paper-schedule-hopper",
+        "paper-schedule-walker2d",
+        "physics-power",
+        "fixed-rank-power",
+    ):
         header = spec.resolve(name).read_text().split("\nname:")[0]
         assert "seed-steps" in header and "Estimated ~" in header, name
