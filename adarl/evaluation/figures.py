@@ -9,6 +9,7 @@ Bands over seeds are Student-t 95% confidence intervals of the mean (`stats.t_in
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import io
 from collections.abc import Mapping, Sequence
@@ -455,47 +456,45 @@ def probability_of_improvement(
 
 @styled
 def learning_rate_schedules(
-    total_updates: int = 3_000_000,
-    truncate_every: int = 1_000_000,
-    warmup_steps: int = 2_000,
-    base_lr: float = 3e-3,
-    min_ratio: float = 0.1,
-    points: int = 3_001,
+    total_steps: int = 3_000_000, truncate_every: int = 1_000_000, points: int = 3_001
 ) -> Figure:
-    """AdaRL's learning rate over a run under `--lr-schedule envelope` and `restart`
-    (`adarl.nets.rank`): truncations every `truncate_every` updates, warm-ups drawn to scale."""
-    from adarl.nets import rank
+    """The actor's learning rate over an AdaRL run of `total_steps` steps and d_t =
+    `truncate_every` (default: the paper's Hopper schedule) under `--lr-schedule envelope` and
+    `restart`, computed by `sac.learning_rate` itself at the config's defaults; warm-ups drawn to
+    scale."""
+    from adarl.algos import sac
+    from adarl.algos.sac_config import SAC_FAMILY, SACConfig
 
+    config = SACConfig(
+        total_steps=total_steps, truncate_every=truncate_every, **SAC_FAMILY["adarl"]
+    )
+    total_updates, warmup = sac.total_updates(config), config.warmup_steps
+    cut_updates = range(truncate_every, total_updates, truncate_every)[: sac.n_truncations(config)]
     t = np.unique(
         np.concatenate(
             [
                 np.linspace(0, total_updates - 1, points),
-                *[
-                    np.linspace(k, k + 2 * warmup_steps, 50)
-                    for k in range(truncate_every, total_updates, truncate_every)
-                ],
+                *[np.linspace(k, k + 2 * warmup, 50) for k in cut_updates],
             ]
         )
     )
-    start = (t // truncate_every) * truncate_every
-    cuts = t // truncate_every
-    envelope = np.asarray(
-        rank.envelope_learning_rate(
-            t, start, base_lr, warmup_steps, total_updates, min_ratio, cuts > 0
-        )
-    )
-    restart = np.where(
-        cuts > 0,
-        np.asarray(
-            rank.restart_learning_rate(t - start, base_lr, warmup_steps, truncate_every, min_ratio)
-        ),
-        base_lr,
-    )
+    cuts = np.searchsorted(np.asarray(cut_updates), t, side="right")
+    state = {  # the loop's counters after t updates
+        "n_updates": t,
+        "n_truncations": cuts,
+        "iteration_start": np.concatenate([[0], cut_updates])[cuts],
+    }
+
+    def rate(schedule: str) -> np.ndarray:
+        spec = sac.make_spec(dataclasses.replace(config, lr_schedule=schedule), 1, 1, [-1], [1])
+        return np.asarray(sac.learning_rate(spec, state, config.lr_actor))
+
+    envelope, restart = rate("envelope"), rate("restart")
     fig = Figure(figsize=(COLUMN_WIDTH, PANEL_HEIGHT), layout="constrained")
     ax = fig.add_subplot()
     ax.plot(t, envelope, label="envelope (default)")
     ax.plot(t, restart, label="restart", linestyle="--")
-    for k in range(truncate_every, total_updates, truncate_every):
+    for k in cut_updates:
         ax.axvline(k, **TRUNCATION_STYLE)
     ax.set_xlabel("gradient step")
     ax.set_ylabel("learning rate")

@@ -155,9 +155,7 @@ def test_save_figure_writes_png_and_pdf_even_with_dots_in_the_name(tmp_path, run
 
 
 def test_learning_rate_schedules_draws_both_schedules():
-    fig = figures.learning_rate_schedules(
-        total_updates=30_000, truncate_every=10_000, warmup_steps=500
-    )
+    fig = figures.learning_rate_schedules(total_steps=31_000, truncate_every=10_000)
     envelope, restart = (line.get_ydata() for line in fig.axes[0].get_lines()[:2])
     assert envelope[0] == restart[0] == pytest.approx(3e-3)  # both start at the base rate
     assert envelope.min() == 0.0 and restart.min() == 0.0  # each truncation warms up from zero
