@@ -3,9 +3,12 @@ the ranks Eq. 5 proposed at each cut logged so far (applied by AdaRL; logged and
 control, whose networks differ after the first cut), that the control shares AdaRL's prefix
 bit for bit, and each seed's score at the milestone (the mean of its last 5 nominal evaluations
 at steps up to it) in the three arms, with the paired AdaRL − control test, the Welch AdaRL − SAC
-test and their power. An arm that has not reached the milestone is named and left out.
+test and their power. An arm that has not reached the milestone is named and left out. With a
+third argument, also a figure of each seed's nominal evaluations in the three arms up to the
+milestone, saved as FIGURE.png and FIGURE.pdf.
 
-    python docs/experiments/paper_schedule.py results/paper-schedule-hopper 2000000
+    python docs/experiments/paper_schedule.py results/paper-schedule-hopper 2000000 \
+        docs/experiments/paper-schedule-hopper-2m
     python docs/experiments/paper_schedule.py results/paper-schedule-walker2d 1000000
 """
 
@@ -16,9 +19,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 from mechanism import LAYERS, TARGET, paired_line, prefix_rows, rows
 
-from adarl.evaluation import stats
+from adarl.evaluation import figures, stats
 from adarl.evaluation.collect import last_evaluations, read_table
 
 ARMS = {"AdaRL": "adarl_rank_rule-cumulative", "control": "adarl-control-eq5", "SAC": "sac"}
@@ -58,7 +62,39 @@ def welch_line(x: np.ndarray, y: np.ndarray) -> str:
     )
 
 
-def main(sweep: Path, milestone: int) -> None:
+def seed_curves(units: dict[str, list[Path]], milestone: int, cuts: list[int]) -> Figure:
+    """One panel per seed: the mean return of each nominal evaluation up to `milestone` in each
+    arm, with AdaRL's cuts as red dashed lines."""
+    curves = {}
+    for arm, dirs in units.items():
+        for run_dir in dirs:
+            log = read_table(run_dir / "eval.csv")
+            log = log[(log["dynamics"] == "nominal") & (log["step"] <= milestone)]
+            for seed, seed_log in log.groupby("seed"):
+                curves.setdefault(int(seed), {})[arm] = seed_log.groupby("step")["return"].mean()
+    colours = dict(zip(ARMS, ("tab:blue", "tab:orange", "tab:green")))
+    millions = figures.matplotlib.ticker.FuncFormatter(lambda x, _: f"{x / 1e6:g}M" if x else "0")
+    with figures.matplotlib.rc_context(figures.STYLE):
+        fig = Figure(figsize=(figures.FULL_WIDTH, 2.0), layout="constrained")
+        axes = fig.subplots(1, len(curves), sharey=True, squeeze=False)[0]
+        for ax, seed in zip(axes, sorted(curves)):
+            for arm in ("control", "SAC", "AdaRL"):  # AdaRL on top: the shared prefix is its
+                if arm in curves[seed]:
+                    curve = curves[seed][arm]
+                    ax.plot(curve.index, curve.values, label=arm, color=colours[arm], lw=0.9)
+            for cut in cuts:
+                ax.axvline(cut, **figures.TRUNCATION_STYLE)
+            ax.set_title(f"seed {seed}")
+            ax.xaxis.set_major_formatter(millions)
+        axes[0].set_ylabel("return (nominal)")
+        fig.supxlabel("environment steps", fontsize=8)
+        shown = dict(zip(*reversed(axes[0].get_legend_handles_labels())))
+        arms = [arm for arm in ARMS if arm in shown]
+        fig.legend([shown[arm] for arm in arms], arms, loc="outside upper center", ncols=3)
+    return fig
+
+
+def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
     units = {arm: sorted(sweep.glob(f"*/{name}/seeds-*")) for arm, name in ARMS.items()}
     score: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
     print(f"## Milestone {milestone:,}\n")
@@ -111,7 +147,11 @@ def main(sweep: Path, milestone: int) -> None:
         x = np.array([score["AdaRL"][s] for s in both])
         y = np.array([score["SAC"][s] for s in both])
         print(welch_line(x, y))
+    if figure is not None:
+        cuts = sorted({cut for d in units["AdaRL"] for cut in proposals(d) if cut <= milestone})
+        for path in figures.save_figure(seed_curves(units, milestone, cuts), figure):
+            print(f"\nwrote {path}")
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]), int(sys.argv[2]))
+    main(Path(sys.argv[1]), int(sys.argv[2]), Path(sys.argv[3]) if len(sys.argv) > 3 else None)
