@@ -193,8 +193,14 @@ def test_shipped_measurements_against_the_committed_experiments(name):
     # they ran in file order, before the runner started the longest units first
     own = estimate.estimate(sweep, {}, 2, shipped, cores=2, by_critical_path=False)
     assert own.seconds == pytest.approx(_real_wall_s(name), rel=0.03)
+    # borrowed from the other experiments that ran the same code generation: the rows of
+    # 2026-12-03 on (mechanism, physics-power) measure the faster one-lane-per-seed loop
+    same_era = {
+        "docs/experiments/" + e for e in ("rank-rules.md", "fixed-rank-u.md", "reproduction.md")
+    }
     source = f"docs/experiments/{name}.md"
-    other = [m for m in shipped if m.source != source]  # from the other experiment only
+    other = [m for m in shipped if m.source != source and m.source in same_era]
+    assert len(other) < len(shipped)
     borrowed = estimate.estimate(sweep, {}, 2, other, cores=2, by_critical_path=False)
     assert 0.7 < borrowed.seconds / _real_wall_s(name) < 1.35
 

@@ -20,6 +20,7 @@ Layout of the report folder::
                                  best; today sac-parseval's coefficient)
     tables/contrast_FIELD.{md,csv}  with --contrast FIELD: differences along one setting, CIs
     tables/control_pairs.{md,csv}   AdaRL minus its schedule-matched control, seed by seed
+    tables/rank_settling.{md,csv}   final ranks, cuts and settled seeds per bottleneck
     tables/fixed_rank.{md,csv}   score per fixed rank (bias–variance sweep)
     tables/policy_size.{md,csv}  policy parameters before/after rank adaptation
     tables/suites.{md,csv}       worst-case / average return over robustness suites' grids
