@@ -469,7 +469,8 @@ def learning_rate_schedules(
         total_steps=total_steps, truncate_every=truncate_every, **SAC_FAMILY["adarl"]
     )
     total_updates, warmup = sac.total_updates(config), config.warmup_steps
-    cut_updates = range(truncate_every, total_updates, truncate_every)[: sac.n_truncations(config)]
+    period = -(-truncate_every // config.update_every) * config.update_every  # d_t, in whole chunks
+    cut_updates = [k * period for k in range(1, sac.n_truncations(config) + 1)]
     t = np.unique(
         np.concatenate(
             [

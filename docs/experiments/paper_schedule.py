@@ -78,7 +78,7 @@ def seed_curves(units: dict[str, list[Path]], milestone: int, cuts: list[int]) -
         fig = Figure(figsize=(figures.FULL_WIDTH, 2.0), layout="constrained")
         axes = fig.subplots(1, len(curves), sharey=True, squeeze=False)[0]
         for ax, seed in zip(axes, sorted(curves)):
-            for arm in ("control", "SAC", "AdaRL"):  # AdaRL on top: the shared prefix is its
+            for arm in ("control", "SAC", "AdaRL"):  # AdaRL last: the shared prefix in its colour
                 if arm in curves[seed]:
                     curve = curves[seed][arm]
                     ax.plot(curve.index, curve.values, label=arm, color=colours[arm], lw=0.9)

@@ -160,3 +160,6 @@ def test_learning_rate_schedules_draws_both_schedules():
     assert envelope[0] == restart[0] == pytest.approx(3e-3)  # both start at the base rate
     assert envelope.min() == 0.0 and restart.min() == 0.0  # each truncation warms up from zero
     assert envelope[-1] == pytest.approx(3e-4, rel=1e-2)  # the envelope ends at its floor
+    # 31k steps, updates from step 1,000, 50 every 50 steps: 30,050 updates, cuts every 10k
+    cuts = [line.get_xdata()[0] for line in fig.axes[0].get_lines()[2:]]
+    assert cuts == [10_000, 20_000, 30_000]
