@@ -4,21 +4,27 @@ Code that a running experiment uses may change only if its results stay bit-iden
 campaign resumes across the change). Train with the old code, train with the new, compare:
 
     git worktree add /tmp/old <commit>
-    PYTHONPATH=/tmp/old python bench/same_bits.py train /tmp/bits-old
+    python bench/same_bits.py train /tmp/bits-old --code /tmp/old
     python bench/same_bits.py train /tmp/bits-new
     python bench/same_bits.py compare /tmp/bits-old /tmp/bits-new
 
 Every algorithm of the registry trains seeds 0 and 3 (two lanes) at the smoke preset, AdaRL with
-a truncation in the budget. The comparison covers every CSV (timing columns aside) and every
-array of every `.npz` (checkpoints, policies, spectra); it prints each difference and exits 1 if
-there is one. Files only the new code writes are listed as added, not as differences;
-TensorBoard event files (named by their time) are left out.
+a truncation in the budget, and AdaRL and its control once more with Eq. 5 (`cumulative`, the
+campaign's rule). Each run's code is the checkout `--code` (default: this one): the trainer runs
+in that folder, because `python -m` puts the working folder ahead of PYTHONPATH and of the
+editable install, and `compare` reads the commit each side ran from its runs' environment.json
+and refuses (exit 2) when both ran the same one. The comparison covers every CSV (timing columns
+aside) and every array of every `.npz` (checkpoints, policies, spectra); it prints each difference
+and exits 1 if there is one. Files only the new code writes are listed as added, not as
+differences; TensorBoard event files (named by their time) are left out.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -27,6 +33,8 @@ import numpy as np
 
 TIMING_COLUMNS = {"steps_per_s", "wall_s", "time", "seconds"}
 EXTRA_FLAGS = {"sac-fixed-rank": ["--rank", "16"]}  # what an algorithm cannot train without
+EQ5 = ("adarl", "adarl-control")  # trained once more with the campaign's rule
+HERE = Path(__file__).resolve().parents[1]
 
 
 def algorithms() -> list[str]:
@@ -35,14 +43,32 @@ def algorithms() -> list[str]:
     return list(registry.ALGORITHMS)
 
 
-def train(out: Path, algos: list[str]) -> None:
-    for algo in algos:
+def train(out: Path, algos: list[str], code: Path = HERE) -> None:
+    """Smoke runs of `algos` into OUT/<algo> (and OUT/<algo>-cumulative), with `code`'s adarl."""
+    out, code = out.resolve(), code.resolve()
+    env = {**os.environ, "PYTHONPATH": str(code)}
+    runs = [(algo, algo, []) for algo in algos]
+    runs += [(algo, f"{algo}-cumulative", ["--rank-rule", "cumulative"]) for algo in EQ5]
+    for algo, name, flags in runs:
+        if algo not in algos:
+            continue
         subprocess.run(
             [sys.executable, "-m", "adarl.cli.main", "train", "--algo", algo, "--preset", "smoke"]
-            + ["--seeds", "0,3", "--out", str(out / algo), "--no-report"]
-            + EXTRA_FLAGS.get(algo, []),
-            check=True,
-        )
+            + ["--seeds", "0,3", "--out", str(out / name), "--no-report"]
+            + EXTRA_FLAGS.get(algo, []) + flags,
+            check=True, cwd=code, env=env,
+        )  # fmt: skip
+
+
+def commits(root: Path) -> set[str]:
+    """The adarl commits the runs under `root` recorded in their environment.json (`+dirty` with
+    uncommitted changes, `unknown` outside a git checkout)."""
+    found = set()
+    for path in root.glob("*/environment.json"):
+        adarl = json.loads(path.read_text())["adarl"]
+        dirty = "+dirty" if adarl.get("git_dirty") else ""
+        found.add(f"{adarl.get('git_commit') or 'unknown'}{dirty}")
+    return found
 
 
 def csv_rows(path: Path) -> list[dict]:
@@ -87,13 +113,20 @@ def main() -> int:
     t = sub.add_parser("train", help="smoke runs of every algorithm into OUT/<algo>")
     t.add_argument("out", type=Path)
     t.add_argument("--algos", nargs="*", help="default: every algorithm of the registry")
+    t.add_argument("--code", type=Path, default=HERE, help="the checkout to run (default: this)")
     c = sub.add_parser("compare", help="compare two folders written by `train`")
     c.add_argument("old", type=Path)
     c.add_argument("new", type=Path)
     args = parser.parse_args()
     if args.command == "train":
-        train(args.out, args.algos or algorithms())
+        train(args.out, args.algos or algorithms(), args.code)
         return 0
+    old_commits, new_commits = commits(args.old), commits(args.new)
+    print(f"old ran {sorted(old_commits)}, new ran {sorted(new_commits)}")
+    same = old_commits == new_commits and len(old_commits) == 1
+    if same and not next(iter(old_commits)).endswith(("+dirty", "unknown")):
+        print("both sides ran the same commit: nothing was compared")
+        return 2
     differences, added = compare(args.old, args.new)
     print("\n".join(added + differences))
     print(f"{len(differences)} differences" if differences else "bit-identical")

@@ -1,8 +1,9 @@
 """What produced a run: package versions, adarl's git commit, Python, CPU and XLA flags.
 
-Every trainer writes `environment.json` into a new run folder (`write_environment`);
-`adarl report` lists the records and warns when runs compared were made with different versions
-of the packages in `COMPARED` (docs/run-format.md).
+Every trainer writes `environment.json` into a new run folder (`write_environment`) and appends
+what each resume ran to its `resumes` (`record_resume`); `adarl report` lists the records and
+warns when runs compared were made with different versions of the packages in `COMPARED`, or a
+run was resumed with other code (`code_changes`) (docs/run-format.md).
 """
 
 from __future__ import annotations
@@ -54,6 +55,52 @@ def write_environment(run_dir: str | os.PathLike, extra: dict | None = None) -> 
     atomic_write_json(Path(run_dir) / ENVIRONMENT_FILE, {**environment_record(), **(extra or {})})
 
 
+def record_resume(run_dir: str | os.PathLike, step: int) -> None:
+    """Append what resumes the run at `step` (adarl's version and commit, the package versions)
+    to RUN_DIR/environment.json's `resumes` list (atomically). A run without the file, made
+    before it existed, is left as it was; so is a damaged one, with a warning (training goes on:
+    the file is metadata, and `adarl report` names it)."""
+    try:
+        record = read_environment(run_dir)
+    except UsageError as exc:
+        print(f"adarl: warning: {exc}; this resume is not recorded in it", file=sys.stderr)
+        return
+    if record is None:
+        return
+    now = environment_record()
+    entry = {"step": int(step), "adarl": now["adarl"], "packages": now["packages"]}
+    resumes = [*record.get("resumes", []), entry]
+    atomic_write_json(Path(run_dir) / ENVIRONMENT_FILE, {**record, "resumes": resumes})
+
+
+def code_changes(record: dict | None) -> list[str]:
+    """Each change of adarl's code (version, commit) or of a `COMPARED` package's version at a
+    resume, as `adarl 0.1.0 (89e02c6ce3f2) → 0.1.0 (e9f6ba3d2f70) from step 1,050,000`; empty
+    without a record or when every resume ran what created the run. An unknown commit on either
+    side (not a git checkout) is not a change."""
+    if not record:
+        return []
+
+    def state(part: dict) -> dict[str, str | None]:
+        adarl, packages = part.get("adarl") or {}, part.get("packages") or {}
+        commit, dirty = adarl.get("git_commit"), "+dirty" if adarl.get("git_dirty") else ""
+        code = f"{adarl.get('version')} ({commit[:12]}{dirty})" if commit else None
+        return {"adarl": code, **{name: packages.get(name) for name in COMPARED}}
+
+    changes, before = [], state(record)
+    for resume in record.get("resumes", []):
+        after = state(resume)
+        changed = [
+            f"{name} {before[name]} → {after[name]}"
+            for name in before
+            if before[name] and after[name] and before[name] != after[name]
+        ]
+        if changed:
+            changes.append(f"{', '.join(changed)} from step {resume['step']:,}")
+        before = {name: after[name] or before[name] for name in before}
+    return changes
+
+
 #: the parts of a record that are objects (`summary` reads their keys)
 RECORD_OBJECTS = ("adarl", "python", "packages", "cpu")
 
@@ -76,6 +123,14 @@ def read_environment(run_dir: str | os.PathLike) -> dict | None:
                 f"{path} field {key!r} is {record[key]!r}; allowed: an object "
                 "(as adarl writes it); delete the file or restore it"
             )
+    resumes = record.get("resumes", [])
+    if not isinstance(resumes, list) or not all(
+        isinstance(r, dict) and isinstance(r.get("step"), int) for r in resumes
+    ):
+        raise UsageError(
+            f"{path} field 'resumes' is {resumes!r}; allowed: a list of objects with an integer "
+            "step (as adarl writes it); delete the file or restore it"
+        )
     return record
 
 

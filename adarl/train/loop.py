@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from adarl.errors import UsageError
-from adarl.runs import checkpoints, codec, folder, layout, logs
+from adarl.runs import checkpoints, codec, folder, layout, logs, provenance
 from adarl.runs.lock import RunLock
 from adarl.train.guards import DivergenceWatch
 
@@ -117,6 +117,7 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
                 loop.open_logs({name: 0 for name in loop.log_names(resuming=True)})
             else:
                 loop.restore(path, arrays, meta)
+            provenance.record_resume(run_dir, loop.step)  # the code that goes on from here
         else:
             folder.check_new_run_dir(run_dir)
             learner = make_learner(config)  # unknown tasks or dynamics fail before any write

@@ -139,3 +139,89 @@ def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
         )
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["mujoco"] == metadata.version("mujoco")
+
+
+def _code(commit, dirty=False, **packages):
+    return {
+        "adarl": {"version": "0.1.0", "git_commit": commit, "git_dirty": dirty},
+        **_record(**packages),
+    }
+
+
+def test_a_resume_is_appended_with_its_step_and_code(tmp_path, monkeypatch, capsys):
+    provenance.record_resume(tmp_path, 500)  # a run made before environment.json: left alone
+    assert not (tmp_path / "environment.json").exists()
+    (tmp_path / "environment.json").write_text(json.dumps({**_code("a" * 40), "cpu": {}}))
+    monkeypatch.setattr(
+        provenance, "_git_state", lambda: {"git_commit": "b" * 40, "git_dirty": False}
+    )
+    provenance.record_resume(tmp_path, 1_050_000)
+    provenance.record_resume(tmp_path, 1_600_000)
+    record = provenance.read_environment(tmp_path)
+    assert record["adarl"]["git_commit"] == "a" * 40 and record["cpu"] == {}  # creation kept
+    assert [r["step"] for r in record["resumes"]] == [1_050_000, 1_600_000]
+    assert record["resumes"][0]["adarl"]["git_commit"] == "b" * 40
+    assert record["resumes"][0]["packages"]["jax"] == metadata.version("jax")
+    damaged = json.dumps({"resumes": [{"step": "5"}]})
+    (tmp_path / "environment.json").write_text(damaged)
+    with pytest.raises(UsageError, match="field 'resumes'"):
+        provenance.read_environment(tmp_path)
+    provenance.record_resume(tmp_path, 1_700_000)  # a resume goes on, the damage is left as is
+    assert (tmp_path / "environment.json").read_text() == damaged
+    assert "field 'resumes'" in capsys.readouterr().err
+
+
+def test_code_changes_name_what_changed_and_from_which_step():
+    record = {
+        **_code("a" * 40),
+        "resumes": [
+            {"step": 50_000, **_code("a" * 40)},  # same code: no change
+            {"step": 100_000, **_code(None)},  # not a git checkout: unknown, not a change
+            {"step": 150_000, **_code("b" * 40, mujoco="4.1.0", numpy="3")},
+            {"step": 200_000, **_code("b" * 40, dirty=True, mujoco="4.1.0")},
+        ],
+    }
+    assert provenance.code_changes(record) == [
+        f"adarl 0.1.0 ({'a' * 12}) → 0.1.0 ({'b' * 12}), mujoco 4.0.0 → 4.1.0 from step 150,000",
+        f"adarl 0.1.0 ({'b' * 12}) → 0.1.0 ({'b' * 12}+dirty) from step 200,000",
+    ]
+    assert provenance.code_changes(_code("a" * 40)) == [] and provenance.code_changes(None) == []
+
+
+class StopTraining(Exception):
+    pass
+
+
+def test_the_trainer_records_each_resume_and_the_report_warns(tmp_path, monkeypatch, capsys):
+    """A run created by one commit and resumed by another says so in the report."""
+    from adarl.train import loop
+
+    def stop(self):
+        raise StopTraining
+
+    monkeypatch.setattr(loop.Loop, "run", stop)  # create (or resume), then stop at once
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    config, run = sac_config.SACConfig(**values), tmp_path / "run"
+    monkeypatch.setattr(
+        provenance, "_git_state", lambda: {"git_commit": "a" * 40, "git_dirty": False}
+    )
+    with pytest.raises(StopTraining):
+        sac_learner.train(config, run, progress=False)
+    assert "resumes" not in provenance.read_environment(run)
+    monkeypatch.setattr(
+        provenance, "_git_state", lambda: {"git_commit": "c" * 40, "git_dirty": False}
+    )
+    with pytest.raises(StopTraining):
+        sac_learner.train(config, run, resume=True, progress=False)
+    record = provenance.read_environment(run)
+    assert [(r["step"], r["adarl"]["git_commit"]) for r in record["resumes"]] == [(0, "c" * 40)]
+
+    (tmp_path / "out" / "tables").mkdir(parents=True)
+    notes = []
+    report.environment_section([SimpleNamespace(path=run)], tmp_path / "out", notes)
+    line = (
+        f"run {run} was resumed with other code: "
+        f"adarl {__version__} ({'a' * 12}) → {__version__} ({'c' * 12}) from step 0"
+    )
+    assert notes == [f"Warning: {line}."]
+    assert capsys.readouterr().err.endswith(f"adarl: warning: {line}\n")

@@ -329,12 +329,17 @@ def _seed_counts(table: tables.ScoreTable) -> str:
 
 def environment_section(runs: list[Run], folder: Path, notes: list[str]) -> Section:
     """What produced each run (its environment.json; "unknown" without one), and one warning per
-    package of `provenance.COMPARED` whose version differs between runs, in the notes and on
-    stderr."""
+    package of `provenance.COMPARED` whose version differs between runs and per run resumed with
+    other code (`provenance.code_changes`), in the notes and on stderr."""
     records = {str(r.path): provenance.read_environment(r.path) for r in runs}
     df = pd.DataFrame([{"run": run, **provenance.summary(rec)} for run, rec in records.items()])
     path = write_file(folder, "tables/environments.csv", df.to_csv(index=False))
-    for line in provenance.mismatches(records):
+    resumed = [
+        f"run {run} was resumed with other code: {'; '.join(changes)}"
+        for run, record in records.items()
+        if (changes := provenance.code_changes(record))
+    ]
+    for line in provenance.mismatches(records) + resumed:
         notes.append(f"Warning: {line}.")
         print(f"adarl: warning: {line}", file=sys.stderr)
     text = tables.markdown_table(list(df.columns), df.values.tolist())
