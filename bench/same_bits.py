@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import os
 import subprocess
 import sys
@@ -63,9 +62,11 @@ def train(out: Path, algos: list[str], code: Path = HERE) -> None:
 def commits(root: Path) -> set[str]:
     """The adarl commits the runs under `root` recorded in their environment.json (`+dirty` with
     uncommitted changes, `unknown` outside a git checkout)."""
+    from adarl.runs.provenance import read_environment
+
     found = set()
     for path in root.glob("*/environment.json"):
-        adarl = json.loads(path.read_text())["adarl"]
+        adarl = read_environment(path.parent)["adarl"]
         dirty = "+dirty" if adarl.get("git_dirty") else ""
         found.add(f"{adarl.get('git_commit') or 'unknown'}{dirty}")
     return found
@@ -119,6 +120,8 @@ def main() -> int:
     c.add_argument("new", type=Path)
     args = parser.parse_args()
     if args.command == "train":
+        if not (args.code / "adarl").is_dir():
+            parser.error(f"--code {args.code} holds no adarl package; allowed: a checkout of adarl")
         train(args.out, args.algos or algorithms(), args.code)
         return 0
     old_commits, new_commits = commits(args.old), commits(args.new)

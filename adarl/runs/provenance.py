@@ -83,8 +83,7 @@ def code_changes(record: dict | None) -> list[str]:
 
     def state(part: dict) -> dict[str, str | None]:
         adarl, packages = part.get("adarl") or {}, part.get("packages") or {}
-        commit, dirty = adarl.get("git_commit"), "+dirty" if adarl.get("git_dirty") else ""
-        code = f"{adarl.get('version')} ({commit[:12]}{dirty})" if commit else None
+        code = _code_text(adarl) if adarl.get("git_commit") else None
         return {"adarl": code, **{name: packages.get(name) for name in COMPARED}}
 
     changes, before = [], state(record)
@@ -140,10 +139,7 @@ def summary(record: dict | None) -> dict[str, str]:
     if record is None:
         return dict.fromkeys(("adarl", "python", *PACKAGES, "cpu", "cores", "XLA_FLAGS"), "unknown")
     adarl, cpu = record.get("adarl") or {}, record.get("cpu") or {}
-    version = str(adarl.get("version") or "unknown")
-    if adarl.get("git_commit"):
-        dirty = "+dirty" if adarl.get("git_dirty") else ""
-        version += f" ({adarl['git_commit'][:12]}{dirty})"
+    version = _code_text(adarl)
     packages = record.get("packages") or {}
     return {
         "adarl": version,
@@ -169,6 +165,15 @@ def mismatches(records: dict[str, dict | None]) -> list[str]:
             groups = "; ".join(f"{v} ({', '.join(names)})" for v, names in by_version.items())
             lines.append(f"runs were made with different {package} versions: {groups}")
     return lines
+
+
+def _code_text(adarl: dict) -> str:
+    """adarl's version with its commit, as `0.1.0 (89e02c6ce3f2)` (`+dirty` with uncommitted
+    changes); the version alone outside a git checkout."""
+    text = str(adarl.get("version") or "unknown")
+    if adarl.get("git_commit"):
+        text += f" ({adarl['git_commit'][:12]}{'+dirty' if adarl.get('git_dirty') else ''})"
+    return text
 
 
 def _version(distribution: str) -> str | None:

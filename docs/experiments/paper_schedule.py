@@ -154,4 +154,7 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
 
 
 if __name__ == "__main__":
+    if len(sys.argv) not in (3, 4) or not sys.argv[2].isdigit():
+        print("usage: paper_schedule.py SWEEP_DIR STEP [FIGURE]", file=sys.stderr)
+        sys.exit(2)
     main(Path(sys.argv[1]), int(sys.argv[2]), Path(sys.argv[3]) if len(sys.argv) > 3 else None)
