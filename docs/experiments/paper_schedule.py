@@ -2,10 +2,11 @@
 the ranks Eq. 5 proposed at each cut logged so far (applied by AdaRL; logged and not applied by the
 control, whose networks differ after the first cut), that the control shares AdaRL's prefix
 bit for bit, and each seed's score at the milestone (the mean of its last 5 nominal evaluations
-at steps up to it) in the three arms, with the paired AdaRL − control test, the Welch AdaRL − SAC
-test and their power. An arm that has not reached the milestone is named and left out. With a
-third argument, also a figure of each seed's nominal evaluations in the three arms up to the
-milestone, saved as FIGURE.png and FIGURE.pdf.
+at steps up to it) and mean episode length in the three arms, with the paired AdaRL − control test
+(t interval and p, sign-flip p, each seed's difference), the Welch AdaRL − SAC test (t interval
+and p, permutation p) and their power. An arm that has not reached the milestone is named and
+left out. With a third argument, also a figure of each seed's nominal evaluations in the three
+arms up to the milestone, saved as FIGURE.png and FIGURE.pdf.
 
     python docs/experiments/paper_schedule.py results/paper-schedule-hopper 2000000 \
         docs/experiments/paper-schedule-hopper-2m
@@ -19,6 +20,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import scipy.stats
 from matplotlib.figure import Figure
 from mechanism import LAYERS, TARGET, paired_line, prefix_rows, rows
 
@@ -29,16 +31,22 @@ ARMS = {"AdaRL": "adarl_rank_rule-cumulative", "control": "adarl-control-eq5", "
 LAST_K = 5  # the report's default score: the mean of the last 5 evaluations
 
 
-def scores_at(run_dir: Path, milestone: int) -> dict[int, float] | int:
-    """Each seed's score from the nominal evaluations at steps ≤ `milestone`; the newest
-    evaluated step instead when the run has not reached the milestone."""
+def scores_at(run_dir: Path, milestone: int) -> tuple[dict[int, float], dict[int, float]] | int:
+    """Each seed's score from the nominal evaluations at steps ≤ `milestone`, and the mean
+    episode length of those evaluations (what the policies did: 1,000 is the time limit); the
+    newest evaluated step instead when the run has not reached the milestone."""
     log = read_table(run_dir / "eval.csv")
     log = log[log["dynamics"] == "nominal"]
     newest = int(log["step"].max()) if len(log) else 0
     if newest < milestone:
         return newest
-    table = last_evaluations(log[log["step"] <= milestone], LAST_K)
-    return {int(s): float(v) for s, v in zip(table["seed"], table["score"])}
+    log = log[log["step"] <= milestone]
+    score = last_evaluations(log, LAST_K)
+    length = last_evaluations(log.assign(**{"return": log["length"]}), LAST_K)
+    return (
+        {int(s): float(v) for s, v in zip(score["seed"], score["score"])},
+        {int(s): float(v) for s, v in zip(length["seed"], length["score"])},
+    )
 
 
 def proposals(run_dir: Path) -> dict[int, dict[int, dict[str, int]]]:
@@ -49,12 +57,25 @@ def proposals(run_dir: Path) -> dict[int, dict[int, dict[str, int]]]:
     return out
 
 
+def paired_t_line(x: np.ndarray, y: np.ndarray) -> str:
+    """The paired t-test's statistic and p, and each seed's difference (the pre-registered
+    primary test of AdaRL − control)."""
+    test = scipy.stats.ttest_rel(x, y)
+    differences = ", ".join(f"{d:+,.0f}" for d in x - y)
+    return (
+        f"- paired t = {test.statistic:.2f} ({len(x) - 1} df), p = {test.pvalue:.2g}; "
+        f"differences by seed: {differences}"
+    )
+
+
 def welch_line(x: np.ndarray, y: np.ndarray) -> str:
     ci = stats.welch_difference_ci(x, y)
     sd = stats.pooled_sd(x, y)
+    test = scipy.stats.ttest_ind(x, y, equal_var=False)
     return (
         f"- AdaRL − SAC: AdaRL {x.mean():,.0f}, SAC {y.mean():,.0f}; difference {ci.point:+,.0f}, "
-        f"95% Welch t interval [{ci.low:+,.0f}, {ci.high:+,.0f}]; exact permutation p = "
+        f"95% Welch t interval [{ci.low:+,.0f}, {ci.high:+,.0f}]; Welch t = "
+        f"{test.statistic:.2f} ({test.df:.1f} df), p = {test.pvalue:.2g}; exact permutation p = "
         f"{stats.permutation_p_value(x, y):.3g} ({len(x)} vs {len(y)} seeds); pooled SD "
         f"{sd:,.0f}; smallest difference detectable at 80% power "
         f"{stats.minimum_detectable_difference(sd, len(x), len(y)):,.0f}; seeds per arm a "
@@ -97,6 +118,7 @@ def seed_curves(units: dict[str, list[Path]], milestone: int, cuts: list[int]) -
 def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
     units = {arm: sorted(sweep.glob(f"*/{name}/seeds-*")) for arm, name in ARMS.items()}
     score: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
+    length: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
     print(f"## Milestone {milestone:,}\n")
     for arm, dirs in units.items():
         for run_dir in dirs:
@@ -104,7 +126,8 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
             if isinstance(got, int):
                 print(f"- {arm} ({run_dir.name}) has not reached it: newest evaluation at {got:,}")
             else:
-                score[arm] |= got
+                score[arm] |= got[0]
+                length[arm] |= got[1]
 
     for method_dir in units["AdaRL"]:
         control_dir = method_dir.parent.parent / ARMS["control"] / method_dir.name
@@ -136,12 +159,19 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
     present = [arm for arm in ARMS if score[arm]]
     seeds = sorted(set.intersection(*(set(score[arm]) for arm in present))) if present else []
     print(f"\n### Score at {milestone:,} (mean of the last {LAST_K} nominal evaluations)\n")
-    print("| seed | " + " | ".join(present) + " |\n| ---: |" + " ---: |" * len(present))
+    print("and the mean episode length of those evaluations (of 1,000)\n")
+    header = present + [f"length: {arm}" for arm in present]
+    print("| seed | " + " | ".join(header) + " |\n| ---: |" + " ---: |" * len(header))
     for s in seeds:
-        print(f"| {s} | " + " | ".join(f"{score[arm][s]:,.0f}" for arm in present) + " |")
+        cells = [f"{score[arm][s]:,.0f}" for arm in present]
+        cells += [f"{length[arm][s]:,.0f}" for arm in present]
+        print(f"| {s} | " + " | ".join(cells) + " |")
     print()
     if score["AdaRL"] and score["control"]:
         print(paired_line(f"score at {milestone:,}", score["AdaRL"], score["control"]))
+        both = sorted(set(score["AdaRL"]) & set(score["control"]))
+        x = np.array([score["AdaRL"][s] for s in both])
+        print(paired_t_line(x, np.array([score["control"][s] for s in both])))
     if score["AdaRL"] and score["SAC"]:
         both = sorted(set(score["AdaRL"]) & set(score["SAC"]))
         x = np.array([score["AdaRL"][s] for s in both])
