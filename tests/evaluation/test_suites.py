@@ -172,7 +172,7 @@ def test_parallel_result_equals_serial(hopper_run, monkeypatch):
     pd.testing.assert_frame_equal(serial, parallel)
 
 
-def test_ray_backend_equals_serial(hopper_run, monkeypatch):
+def test_ray_backend_equals_serial(hopper_run, monkeypatch, local_ray_turn):
     pytest.importorskip("ray")
     from adarl.evaluation.runs import find_runs
 

@@ -43,7 +43,7 @@ def test_smoke_preset_on_the_local_pool(tmp_path, capsys, assert_complete):
     assert json.loads((out / "manifest.json").read_text())["units"][UNITS[0]]["attempts"] == 1
 
 
-def test_smoke_preset_on_a_local_ray_instance(tmp_path, capsys, assert_complete):
+def test_smoke_preset_on_a_local_ray_instance(tmp_path, capsys, assert_complete, local_ray_turn):
     ray = pytest.importorskip("ray")
     out = tmp_path / "sweep"
     try:
