@@ -4,7 +4,8 @@ control, whose networks differ after the first cut), that the control shares Ada
 bit for bit, and each seed's score at the milestone (the mean of its last 5 nominal evaluations
 at steps up to it) and mean episode length in the three arms, with the paired AdaRL − control test
 (t interval and p, sign-flip p, each seed's difference), the Welch AdaRL − SAC test (t interval
-and p, permutation p) and their power. An arm that has not reached the milestone is named and
+and p, permutation p) and their power, and the same tests on the evaluation at the milestone
+alone. An arm that has not reached the milestone is named and
 left out. With a third argument, also a figure of each seed's nominal evaluations in the three
 arms up to the milestone, saved as FIGURE.png and FIGURE.pdf.
 
@@ -31,8 +32,11 @@ ARMS = {"AdaRL": "adarl_rank_rule-cumulative", "control": "adarl-control-eq5", "
 LAST_K = 5  # the report's default score: the mean of the last 5 evaluations
 
 
-def scores_at(run_dir: Path, milestone: int) -> tuple[dict[int, float], dict[int, float]] | int:
-    """Each seed's score from the nominal evaluations at steps ≤ `milestone`, and the mean
+def scores_at(
+    run_dir: Path, milestone: int, k: int = LAST_K
+) -> tuple[dict[int, float], dict[int, float]] | int:
+    """Each seed's score (the mean of its last `k`) from the nominal evaluations at steps ≤
+    `milestone`, and the mean
     episode length of those evaluations (what the policies did: 1,000 is the time limit); the
     newest evaluated step instead when the run has not reached the milestone."""
     log = read_table(run_dir / "eval.csv")
@@ -41,8 +45,8 @@ def scores_at(run_dir: Path, milestone: int) -> tuple[dict[int, float], dict[int
     if newest < milestone:
         return newest
     log = log[log["step"] <= milestone]
-    score = last_evaluations(log, LAST_K)
-    length = last_evaluations(log.assign(**{"return": log["length"]}), LAST_K)
+    score = last_evaluations(log, k)
+    length = last_evaluations(log.assign(**{"return": log["length"]}), k)
     return (
         {int(s): float(v) for s, v in zip(score["seed"], score["score"])},
         {int(s): float(v) for s, v in zip(length["seed"], length["score"])},
@@ -68,12 +72,12 @@ def paired_t_line(x: np.ndarray, y: np.ndarray) -> str:
     )
 
 
-def welch_line(x: np.ndarray, y: np.ndarray) -> str:
+def welch_line(what: str, x: np.ndarray, y: np.ndarray) -> str:
     ci = stats.welch_difference_ci(x, y)
     sd = stats.pooled_sd(x, y)
     test = scipy.stats.ttest_ind(x, y, equal_var=False)
     return (
-        f"- AdaRL − SAC: AdaRL {x.mean():,.0f}, SAC {y.mean():,.0f}; difference {ci.point:+,.0f}, "
+        f"- {what}: AdaRL − SAC: AdaRL {x.mean():,.0f}, SAC {y.mean():,.0f}; difference {ci.point:+,.0f}, "
         f"95% Welch t interval [{ci.low:+,.0f}, {ci.high:+,.0f}]; Welch t = "
         f"{test.statistic:.2f} ({test.df:.1f} df), p = {test.pvalue:.2g}; exact permutation p = "
         f"{stats.permutation_p_value(x, y):.3g} ({len(x)} vs {len(y)} seeds); pooled SD "
@@ -115,10 +119,27 @@ def seed_curves(units: dict[str, list[Path]], milestone: int, cuts: list[int]) -
     return fig
 
 
+def comparisons(what: str, score: dict[str, dict[int, float]]) -> None:
+    """The paired AdaRL − control and the Welch AdaRL − SAC tests of one score."""
+
+    def paired(arm: str) -> tuple[np.ndarray, np.ndarray]:
+        both = sorted(set(score["AdaRL"]) & set(score[arm]))
+        return np.array([score["AdaRL"][s] for s in both]), np.array([score[arm][s] for s in both])
+
+    if score["AdaRL"] and score["control"]:
+        print(paired_line(what, score["AdaRL"], score["control"]))
+        print(paired_t_line(*paired("control")))
+    if score["AdaRL"] and score["SAC"]:
+        print(welch_line(what, *paired("SAC")))
+
+
 def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
     units = {arm: sorted(sweep.glob(f"*/{name}/seeds-*")) for arm, name in ARMS.items()}
     score: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
     length: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
+    final: dict[str, dict[int, float]] = {
+        arm: {} for arm in ARMS
+    }  # the evaluation at the milestone
     print(f"## Milestone {milestone:,}\n")
     for arm, dirs in units.items():
         for run_dir in dirs:
@@ -128,6 +149,7 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
             else:
                 score[arm] |= got[0]
                 length[arm] |= got[1]
+                final[arm] |= scores_at(run_dir, milestone, k=1)[0]
 
     for method_dir in units["AdaRL"]:
         control_dir = method_dir.parent.parent / ARMS["control"] / method_dir.name
@@ -167,16 +189,9 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
         cells += [f"{length[arm][s]:,.0f}" for arm in present]
         print(f"| {s} | " + " | ".join(cells) + " |")
     print()
-    if score["AdaRL"] and score["control"]:
-        print(paired_line(f"score at {milestone:,}", score["AdaRL"], score["control"]))
-        both = sorted(set(score["AdaRL"]) & set(score["control"]))
-        x = np.array([score["AdaRL"][s] for s in both])
-        print(paired_t_line(x, np.array([score["control"][s] for s in both])))
-    if score["AdaRL"] and score["SAC"]:
-        both = sorted(set(score["AdaRL"]) & set(score["SAC"]))
-        x = np.array([score["AdaRL"][s] for s in both])
-        y = np.array([score["SAC"][s] for s in both])
-        print(welch_line(x, y))
+    comparisons(f"score at {milestone:,}", score)
+    print(f"\nThe evaluation at step {milestone:,} alone:\n")
+    comparisons(f"evaluation at {milestone:,}", final)
     if figure is not None:
         cuts = sorted({cut for d in units["AdaRL"] for cut in proposals(d) if cut <= milestone})
         for path in figures.save_figure(seed_curves(units, milestone, cuts), figure):
