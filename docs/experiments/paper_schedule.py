@@ -5,9 +5,9 @@ bit for bit, and each seed's score at the milestone (the mean of its last 5 nomi
 at steps up to it) and mean episode length in the three arms, with the paired AdaRL − control test
 (t interval and p, sign-flip p, each seed's difference), the Welch AdaRL − SAC test (t interval
 and p, permutation p) and their power, and the same tests on the evaluation at the milestone
-alone. An arm that has not reached the milestone is named and
-left out. With a third argument, also a figure of each seed's nominal evaluations in the three
-arms up to the milestone, saved as FIGURE.png and FIGURE.pdf.
+alone. An arm that has not reached the milestone is named and left out. With a third argument,
+also a figure of each seed's nominal evaluations in the three arms up to the milestone, saved as
+FIGURE.png and FIGURE.pdf.
 
     python docs/experiments/paper_schedule.py results/paper-schedule-hopper 2000000 \
         docs/experiments/paper-schedule-hopper-2m
@@ -36,9 +36,9 @@ def scores_at(
     run_dir: Path, milestone: int, k: int = LAST_K
 ) -> tuple[dict[int, float], dict[int, float]] | int:
     """Each seed's score (the mean of its last `k`) from the nominal evaluations at steps ≤
-    `milestone`, and the mean
-    episode length of those evaluations (what the policies did: 1,000 is the time limit); the
-    newest evaluated step instead when the run has not reached the milestone."""
+    `milestone`, and the mean episode length of those evaluations (what the policies did: 1,000
+    is the time limit); the newest evaluated step instead when the run has not reached the
+    milestone."""
     log = read_table(run_dir / "eval.csv")
     log = log[log["dynamics"] == "nominal"]
     newest = int(log["step"].max()) if len(log) else 0
@@ -119,8 +119,19 @@ def seed_curves(units: dict[str, list[Path]], milestone: int, cuts: list[int]) -
     return fig
 
 
-def comparisons(what: str, score: dict[str, dict[int, float]]) -> None:
-    """The paired AdaRL − control and the Welch AdaRL − SAC tests of one score."""
+def comparisons(
+    what: str, score: dict[str, dict[int, float]], length: dict[str, dict[int, float]]
+) -> None:
+    """Each arm's mean ± SD over seeds (and mean episode length), then the paired AdaRL − control
+    and the Welch AdaRL − SAC tests of one score."""
+    arms = [
+        f"{arm} {np.mean(list(score[arm].values())):,.0f} ± "
+        f"{np.std(list(score[arm].values()), ddof=1):,.0f} "
+        f"({np.mean(list(length[arm].values())):,.0f} steps)"
+        for arm in ARMS
+        if len(score[arm]) > 1
+    ]
+    print(f"- {what}, mean ± SD over seeds (mean episode length): " + ", ".join(arms))
 
     def paired(arm: str) -> tuple[np.ndarray, np.ndarray]:
         both = sorted(set(score["AdaRL"]) & set(score[arm]))
@@ -137,9 +148,9 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
     units = {arm: sorted(sweep.glob(f"*/{name}/seeds-*")) for arm, name in ARMS.items()}
     score: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
     length: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
-    final: dict[str, dict[int, float]] = {
-        arm: {} for arm in ARMS
-    }  # the evaluation at the milestone
+    # the evaluation at the milestone alone, and its episode lengths
+    final: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
+    final_length: dict[str, dict[int, float]] = {arm: {} for arm in ARMS}
     print(f"## Milestone {milestone:,}\n")
     for arm, dirs in units.items():
         for run_dir in dirs:
@@ -149,7 +160,9 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
             else:
                 score[arm] |= got[0]
                 length[arm] |= got[1]
-                final[arm] |= scores_at(run_dir, milestone, k=1)[0]
+                final_score, lengths = scores_at(run_dir, milestone, k=1)
+                final[arm] |= final_score
+                final_length[arm] |= lengths
 
     for method_dir in units["AdaRL"]:
         control_dir = method_dir.parent.parent / ARMS["control"] / method_dir.name
@@ -189,9 +202,9 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
         cells += [f"{length[arm][s]:,.0f}" for arm in present]
         print(f"| {s} | " + " | ".join(cells) + " |")
     print()
-    comparisons(f"score at {milestone:,}", score)
+    comparisons(f"score at {milestone:,}", score, length)
     print(f"\nThe evaluation at step {milestone:,} alone:\n")
-    comparisons(f"evaluation at {milestone:,}", final)
+    comparisons(f"evaluation at {milestone:,}", final, final_length)
     if figure is not None:
         cuts = sorted({cut for d in units["AdaRL"] for cut in proposals(d) if cut <= milestone})
         for path in figures.save_figure(seed_curves(units, milestone, cuts), figure):
