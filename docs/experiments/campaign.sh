@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# The campaign's units in the order of issue 34 §3, one after another on both cores. Each sweep
+# resumes every unit from its newest checkpoint and skips finished ones, so running this again
+# (at the start of every session) continues where the last session stopped:
+#   git worktree add --detach /work/camp COMMIT     # the campaign's frozen code (campaign.md)
+#   ../shared/tools/background /work/main/results/campaign.log bash /work/main/docs/experiments/campaign.sh
+set -u
+cd /work/camp                      # python -m puts the working folder first: the frozen code runs
+PY=/work/main/.venv/bin/python
+R=/work/main/results
+mkdir -p "$R"
+for preset in table1-ant-humanoid paper-schedule-walker2d fixed-rank-power; do
+  echo "== $(date -u +%FT%TZ) $preset"
+  $PY -m adarl.cli.main sweep "$preset" --out "$R/$preset" --workers 2 --no-progress
+  echo "== $(date -u +%FT%TZ) $preset exited $?"
+done
