@@ -176,6 +176,15 @@ def main() -> int:
     parser.add_argument("--algos", nargs="+", default=["adarl", "sac"])
     parser.add_argument("--no-sb3", action="store_true")
     parser.add_argument("--no-rnac", action="store_true")
+    parser.add_argument(
+        "--one-lane-seeds",
+        type=int,
+        nargs="*",
+        default=[],
+        metavar="N",
+        help="also measure N seeds vmapped in one lane (--lanes 1) for each N: how the host-physics "
+        "path scales where the update runs on an accelerator (bench/accelerator.sh)",
+    )
     args = parser.parse_args()
     print(
         f"Hopper-v5, paper dynamics, (64, 64) ReLU, batch 256, 1 update/step; {os.cpu_count()} "
@@ -206,6 +215,14 @@ def main() -> int:
             print(
                 f"       5 seeds {label}: {5 * lane:8.1f} seed-steps/s ({5 * lane / one:.2f}x "
                 f"one seed); {jax.local_device_count()} devices"
+            )
+        for seeds in args.one_lane_seeds:
+            lane, _ = training_rate(
+                paper_config(algo, seeds, lanes=1), max(args.steps // 10, 100), args.warmup
+            )
+            print(
+                f"       {seeds} seeds in one lane: {seeds * lane:8.1f} seed-steps/s "
+                f"({seeds * lane / one:.2f}x one seed) on {jax.devices()[0].platform}"
             )
         if algo == "adarl":
             for label, config in [
