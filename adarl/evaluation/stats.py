@@ -11,8 +11,11 @@ does not import with pandas ≥ 3, so it is reimplemented here in NumPy, vectori
 
 Per-task means and differences over a handful of seeds use Student-t intervals instead
 (`mean_ci`, `welch_difference_ci`, `paired_difference_ci`), exact permutation tests
-(`permutation_p_value`, `paired_permutation_p_value`) and the power of the t-test
-(`minimum_detectable_difference`, `seeds_per_arm` and their paired versions): at 3–10 seeds a
+(`permutation_p_value`, `paired_permutation_p_value`) and the intervals from inverting them
+(`paired_permutation_interval`, `two_sample_permutation_interval`), exact tests of counts for
+outcomes of two kinds (`counts_exact_test`), the power of Welch's test (`welch_power`,
+`welch_minimum_detectable_difference`, `detectable_difference_range` over the SD's own interval)
+and of the t-test (`minimum_detectable_difference`, `seeds_per_arm` and their paired versions): at 3–10 seeds a
 percentile bootstrap interval covers far less often than its nominal level (73% instead of 95%
 for one mean of 3 Gaussian seeds), a t interval covers at its level for Gaussian data
 (tests/evaluation/test_coverage.py checks both).
@@ -347,6 +350,124 @@ def paired_permutation_p_value(
     return _two_sided(null, float(d.mean()))
 
 
+# ----------------------------------------------------------------------------- permutation intervals
+# Intervals from inverting the exact permutation tests: the shifts δ the test does not reject.
+# Both tests' one-sided tail counts are monotone in δ (below), so the accepted shifts form an
+# interval whose ends are order statistics of a finite set of "breakpoints"; nothing is searched.
+
+
+def _inverted_interval(
+    breakpoints: np.ndarray, total: int, confidence: float
+) -> tuple[float, float]:
+    """Accepted shifts of a permutation test whose tail counts at a shift δ are
+
+        greater(δ) = (1 + #{v ≤ δ}) / total,   less(δ) = (1 + #{v ≥ δ}) / total
+
+    over the `breakpoints` v (the rearrangements other than the observed one; the observed one
+    is the 1, a tie at every δ). The test accepts δ when p = min(1, 2·min(greater, less)) > α,
+    α = 1 − confidence, i.e. when both counts exceed c = total·α/2 − 1: δ ∈ [v₍ₖ₎, v₍ₘ₋ₖ₊₁₎]
+    with k the smallest integer above c (order statistics of the m breakpoints); the whole line
+    when k ≤ 0 (the test can never reject at this level)."""
+    v = np.sort(np.asarray(breakpoints, float))
+    alpha = 1.0 - confidence
+    k = math.floor(total * alpha / 2.0 - 1.0) + 1  # smallest integer > total·α/2 − 1
+    if k <= 0:
+        return float("-inf"), float("inf")
+    return float(v[k - 1]), float(v[v.size - k])
+
+
+def paired_permutation_interval(
+    differences: np.ndarray, confidence: float = 0.95, resamples: int = 100_000, seed: int = 0
+) -> Interval:
+    """Mean of the paired differences d with the interval of shifts δ that the two-sided exact
+    sign-flip test (`paired_permutation_p_value`) of d − δ does not reject at 1 − confidence.
+
+    Flipping the signs of a set F of the d_i − δ changes the mean by −2·Σ_F (d_i − δ)/n, so the
+    flipped statistic is ≥ the observed one exactly when δ ≥ mean_F(d): the breakpoints are the
+    means of the 2ⁿ − 1 non-empty subsets of d (exact for 2ⁿ ≤ `MAX_EXACT`, else `resamples`
+    random sign vectors). The smallest two-sided p is 2/2ⁿ, so for n ≤ 5 pairs no 95% interval
+    exists: the result is (−∞, +∞), honestly, not the observed range. Valid (covers at its level)
+    when the differences are symmetric about their mean; skewed differences can under-cover
+    (tests/evaluation/test_coverage.py measures both)."""
+    d = np.asarray(differences, float).ravel()
+    n = d.size
+    if n == 0:
+        return Interval(float("nan"), float("nan"), float("nan"))
+    if 2**n <= MAX_EXACT:
+        subsets = ((np.arange(1, 2**n)[:, None] >> np.arange(n)) & 1).astype(float)
+    else:
+        subsets = np.random.default_rng(seed).integers(0, 2, size=(resamples, n)).astype(float)
+        subsets = subsets[subsets.sum(axis=1) > 0]  # an empty flip is the observed arrangement
+    sizes = subsets.sum(axis=1)
+    low, high = _inverted_interval(subsets @ d / sizes, subsets.shape[0] + 1, confidence)
+    return Interval(float(d.mean()), low, high)
+
+
+def two_sample_permutation_interval(
+    x: np.ndarray, y: np.ndarray, confidence: float = 0.95, resamples: int = 100_000, seed: int = 0
+) -> Interval:
+    """mean(X) − mean(Y) with the interval of shifts δ that the two-sided exact permutation test
+    (`permutation_p_value`) of X against Y + δ does not reject at 1 − confidence (the shift
+    model: Y + δ has X's distribution).
+
+    A split that moves k ≥ 1 values A ⊂ X to Y's side and k values B ⊂ Y to X's side gives a
+    statistic ≥ the observed one exactly when δ ≥ mean(A) − mean(B): those are the breakpoints,
+    one per split other than the observed (C(n_x + n_y, n_x) − 1; exact up to `MAX_EXACT`
+    splits, else `resamples` random splits). With 5 vs 5 seeds there are 252 splits (smallest p
+    2/252), so a 95% interval exists; with 3 vs 3 (20 splits) it is (−∞, +∞)."""
+    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    n_x, n = x.size, x.size + y.size
+    if n_x == 0 or y.size == 0:
+        return Interval(float("nan"), float("nan"), float("nan"))
+    if math.comb(n, n_x) <= MAX_EXACT:
+        groups = np.array(list(itertools.combinations(range(n), n_x)), dtype=np.intp)
+    else:
+        rng = np.random.default_rng(seed)
+        groups = np.argsort(rng.random((resamples, n)), axis=1)[:, :n_x]
+    member = np.zeros((groups.shape[0], n), bool)
+    np.put_along_axis(member, groups, True, axis=1)
+    moved_in = member[:, n_x:]  # values of Y placed on X's side
+    k = moved_in.sum(axis=1)
+    keep = k > 0  # k = 0 is the observed split
+    moved_out_sum = (~member[keep, :n_x]) @ x  # values of X placed on Y's side
+    moved_in_sum = moved_in[keep] @ y
+    breakpoints = (moved_out_sum - moved_in_sum) / k[keep]
+    low, high = _inverted_interval(breakpoints, int(keep.sum()) + 1, confidence)
+    return Interval(float(x.mean() - y.mean()), low, high)
+
+
+@dataclass(frozen=True)
+class CountsTest:
+    """Outcomes that are one of two kinds (a policy that hops or falls) counted per arm, with
+    exact tests of equal proportions."""
+
+    successes_x: int
+    n_x: int
+    successes_y: int
+    n_y: int
+    fisher_p: float  # two-sided Fisher exact test (conditional on both margins)
+    boschloo_p: float  # two-sided Boschloo exact test (unconditional; never above Fisher's)
+
+
+def counts_exact_test(successes_x: int, n_x: int, successes_y: int, n_y: int) -> CountsTest:
+    """Exact tests of p_x = p_y for successes_x of n_x against successes_y of n_y: Fisher's
+    (hypergeometric; `scipy.stats.fisher_exact`) and Boschloo's (`scipy.stats.boschloo_exact`),
+    both two-sided. With 5 vs 5 seeds, Fisher's p < 0.05 needs 5 of 5 against 0 of 5."""
+    for name, value, total in (("x", successes_x, n_x), ("y", successes_y, n_y)):
+        if not 0 <= value <= total:
+            raise ValueError(f"successes_{name} = {value} is not between 0 and n_{name} = {total}")
+    table = [[successes_x, n_x - successes_x], [successes_y, n_y - successes_y]]
+    fisher = float(scipy.stats.fisher_exact(table, alternative="two-sided").pvalue)
+    boschloo = float(scipy.stats.boschloo_exact(table, alternative="two-sided").pvalue)
+    return CountsTest(successes_x, n_x, successes_y, n_y, fisher, min(boschloo, 1.0))
+
+
+def count_above(scores: np.ndarray, threshold: float) -> int:
+    """How many per-seed scores exceed `threshold` (the caller's line between the two kinds of
+    outcome, e.g. a return that only a hopping policy reaches)."""
+    return int(np.sum(np.asarray(scores, float) > threshold))
+
+
 # ----------------------------------------------------------------------------- power
 def pooled_sd(x: np.ndarray, y: np.ndarray) -> float:
     """√(((n_x − 1)s_x² + (n_y − 1)s_y²) / (n_x + n_y − 2)), the SD the two-sample t-test assumes
@@ -387,6 +508,95 @@ def paired_t_test_power(difference: float, sd_diff: float, n: int, alpha: float 
     if sd_diff == 0:
         return 1.0 if difference != 0 else alpha
     return _t_power(difference * math.sqrt(n) / sd_diff, n - 1, alpha)
+
+
+_WELCH_NODES = 200  # quadrature nodes per sample variance in `welch_power`
+
+
+def welch_power(
+    difference: float, sd_x: float, sd_y: float, n_x: int, n_y: int, alpha: float = 0.05
+) -> float:
+    """Power of the two-sided Welch t-test (`scipy.stats.ttest_ind(equal_var=False)`) on normal
+    data with true difference `difference` and SDs sd_x, sd_y, computed, not approximated.
+
+    Given the sample variances S_x², S_y², the difference of means D ~ N(δ, σ²),
+    σ² = σ_x²/n_x + σ_y²/n_y, is independent of them, and the test rejects when
+    |D| > t_{1−α/2, ν̂} · √(S_x²/n_x + S_y²/n_y) with ν̂ the Welch–Satterthwaite df of the sample
+    variances. So power = E[Φ((δ − c)/σ) + Φ((−δ − c)/σ)], c = t_{1−α/2, ν̂}·ŝe, an expectation
+    over (n − 1)S²/σ² ~ χ²(n − 1), taken by midpoint quadrature on `_WELCH_NODES` quantiles of
+    each χ² (error below 1e-3, tested against simulation). The noncentral t with the population
+    ν instead (what `t_test_power` gives for equal SDs) overstates it: at 5 vs 5 seeds it puts
+    80% power at 2.02·SD, where Welch's test has 77.6%."""
+    if min(n_x, n_y) < 2:
+        return float("nan")
+    if sd_x == 0 and sd_y == 0:
+        return 1.0 if difference != 0 else alpha
+    u = (np.arange(_WELCH_NODES) + 0.5) / _WELCH_NODES
+    var_x = sd_x**2 * scipy.stats.chi2.ppf(u, n_x - 1) / (n_x - 1)
+    var_y = sd_y**2 * scipy.stats.chi2.ppf(u, n_y - 1) / (n_y - 1)
+    a, b = var_x[:, None] / n_x, var_y[None, :] / n_y
+    se = np.sqrt(a + b)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        df = (a + b) ** 2 / (a**2 / (n_x - 1) + b**2 / (n_y - 1))
+    df = np.where(np.isfinite(df), df, min(n_x, n_y) - 1.0)  # one SD 0: the other's df
+    c = scipy.stats.t.ppf(1.0 - alpha / 2.0, df) * se
+    sigma = math.sqrt(sd_x**2 / n_x + sd_y**2 / n_y)
+    reject = scipy.stats.norm.cdf((difference - c) / sigma) + scipy.stats.norm.cdf(
+        (-difference - c) / sigma
+    )
+    return float(reject.mean())
+
+
+def welch_minimum_detectable_difference(
+    sd_x: float, sd_y: float, n_x: int, n_y: int, power: float = 0.8, alpha: float = 0.05
+) -> float:
+    """The smallest true difference Welch's test (the test the reports run) detects with
+    probability `power`: the δ with `welch_power(δ, sd_x, sd_y, n_x, n_y, α)` = power. At 5 vs 5
+    seeds of equal SD: 2.08·SD (the pooled-t `minimum_detectable_difference` gives 2.02·SD)."""
+    if not (np.isfinite(sd_x) and np.isfinite(sd_y)) or min(n_x, n_y) < 2:
+        return float("nan")
+    scale = max(sd_x, sd_y)
+    if scale == 0:
+        return 0.0
+    return scale * _solve_difference(
+        lambda d: welch_power(d, sd_x / scale, sd_y / scale, n_x, n_y, alpha), power
+    )
+
+
+def sd_confidence_interval(sd: float, df: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Interval for a normal population's SD from a sample SD with `df` degrees of freedom
+    (n − 1 for one sample or n paired differences, n_x + n_y − 2 pooled):
+    [s·√(df/χ²_{(1+c)/2, df}), s·√(df/χ²_{(1−c)/2, df})]. An SD of 987 from 5 values (df 4):
+    [592, 2,837]."""
+    if df < 1 or not np.isfinite(sd):
+        return float("nan"), float("nan")
+    high_q, low_q = scipy.stats.chi2.ppf([(1 + confidence) / 2, (1 - confidence) / 2], df)
+    return float(sd * math.sqrt(df / high_q)), float(sd * math.sqrt(df / low_q))
+
+
+def detectable_difference_range(
+    sd: float,
+    n_x: int,
+    n_y: int | None = None,
+    power: float = 0.8,
+    alpha: float = 0.05,
+    confidence: float = 0.95,
+) -> tuple[float, float]:
+    """The detectable difference at the ends of the SD's own confidence interval
+    (`sd_confidence_interval`): the paired t-test on n_x differences of SD `sd` when n_y is
+    None (df n_x − 1), else Welch's test of n_x against n_y seeds sharing SD `sd` (the pooled
+    SD, df n_x + n_y − 2). A paired SD of 987 from 5 pairs: 995–4,772."""
+    if n_y is None:
+        low, high = sd_confidence_interval(sd, n_x - 1, confidence)
+        return (
+            paired_minimum_detectable_difference(low, n_x, power, alpha),
+            paired_minimum_detectable_difference(high, n_x, power, alpha),
+        )
+    low, high = sd_confidence_interval(sd, n_x + n_y - 2, confidence)
+    return (
+        welch_minimum_detectable_difference(low, low, n_x, n_y, power, alpha),
+        welch_minimum_detectable_difference(high, high, n_x, n_y, power, alpha),
+    )
 
 
 def _solve_difference(power_of, target: float) -> float:

@@ -1,5 +1,10 @@
 """Statistics against hand-computed values and against rliable's own estimators."""
 
+import csv
+import itertools
+import math
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.stats
@@ -273,3 +278,154 @@ def test_compare_groups_bundles_the_pieces():
     assert c.p_value == stats.permutation_p_value(X, Y) and (c.n_x, c.n_y) == (5, 4)
     assert c.detectable == stats.minimum_detectable_difference(stats.pooled_sd(X, Y), 5, 4)
     assert c.seeds_for_target == stats.seeds_per_arm(300.0, stats.pooled_sd(X, Y))
+
+
+# ----------------------------------------------------------------------------- permutation intervals
+def _sign_flip_p(d, delta):
+    """Two-sided sign-flip p of mean(d − δ) = 0, by a plain loop over every sign vector."""
+    shifted = [v - delta for v in d]
+    observed = sum(shifted)
+    count_ge = count_le = 0
+    for signs in itertools.product((1, -1), repeat=len(d)):
+        s = sum(e * v for e, v in zip(signs, shifted))
+        count_ge += s >= observed - 1e-9
+        count_le += s <= observed + 1e-9
+    total = 2 ** len(d)
+    return min(1.0, 2 * min(count_ge, count_le) / total)
+
+
+def _two_sample_p(x, y, delta):
+    """Two-sided permutation p of X against Y + δ by a plain loop over every split."""
+    pooled = list(x) + [v + delta for v in y]
+    n, n_x = len(pooled), len(x)
+    observed = sum(x) / n_x - sum(pooled[n_x:]) / (n - n_x)
+    count_ge = count_le = total = 0
+    for group in itertools.combinations(range(n), n_x):
+        inside = sum(pooled[i] for i in group)
+        s = inside / n_x - (sum(pooled) - inside) / (n - n_x)
+        count_ge += s >= observed - 1e-9
+        count_le += s <= observed + 1e-9
+        total += 1
+    return min(1.0, 2 * min(count_ge, count_le) / total)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_paired_permutation_interval_is_the_set_the_test_accepts(seed):
+    d = np.round(np.random.default_rng(seed).normal(100, 300, 7), 1)
+    interval = stats.paired_permutation_interval(d, confidence=0.9)  # 7 pairs: p ≥ 1/64
+    eps = 1e-6
+    for delta in (interval.low, interval.high, interval.low + eps, interval.high - eps):
+        assert _sign_flip_p(d, delta) > 0.1
+    for delta in (interval.low - eps, interval.high + eps, interval.low - 50, interval.high + 50):
+        assert _sign_flip_p(d, delta) <= 0.1
+    assert interval.point == pytest.approx(d.mean())
+
+
+def test_paired_permutation_interval_of_the_hopper_mechanism_experiment():
+    """The committed per-seed differences of docs/experiments/mechanism-hopper.md (AdaRL −
+    control, 10 pairs): the referee of issue 34 inverted the sign-flip test to [−748, +4]."""
+    table = Path(__file__).parents[2] / "docs/experiments/mechanism-hopper/tables/control_pairs.csv"
+    with table.open() as f:
+        d = [float(row["difference"]) for row in csv.DictReader(f)]
+    interval = stats.paired_permutation_interval(d)
+    assert len(d) == 10
+    assert interval.low == pytest.approx(-748.5, abs=0.5)
+    assert 4.0 < interval.high < 5.0
+
+
+def test_five_pairs_have_no_95_percent_permutation_interval():
+    interval = stats.paired_permutation_interval([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert (interval.low, interval.high) == (-np.inf, np.inf)  # smallest p is 2/32 = 0.0625
+    narrower = stats.paired_permutation_interval([1.0, 2.0, 3.0, 4.0, 5.0], confidence=0.9)
+    assert np.isfinite(narrower.low) and np.isfinite(narrower.high)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_two_sample_permutation_interval_is_the_set_the_test_accepts(seed):
+    rng = np.random.default_rng(seed)
+    x, y = np.round(rng.normal(900, 400, 5), 1), np.round(rng.normal(500, 400, 5), 1)
+    interval = stats.two_sample_permutation_interval(x, y)
+    eps = 1e-6
+    for delta in (interval.low, interval.high, interval.low + eps, interval.high - eps):
+        assert _two_sample_p(x, y, delta) > 0.05
+    for delta in (interval.low - eps, interval.high + eps):
+        assert _two_sample_p(x, y, delta) <= 0.05
+    assert interval.point == pytest.approx(x.mean() - y.mean())
+
+
+def test_two_sample_permutation_interval_samples_when_there_are_too_many_splits(monkeypatch):
+    rng = np.random.default_rng(3)
+    x, y = rng.normal(1, 1, 6), rng.normal(0, 1, 6)
+    exact = stats.two_sample_permutation_interval(x, y)
+    monkeypatch.setattr(stats, "MAX_EXACT", 100)  # C(12, 6) = 924 splits: sampled now
+    sampled = stats.two_sample_permutation_interval(x, y, resamples=20_000)
+    assert sampled.low == pytest.approx(exact.low, abs=0.15)
+    assert sampled.high == pytest.approx(exact.high, abs=0.15)
+
+
+def test_three_seeds_a_side_have_no_95_percent_permutation_interval():
+    interval = stats.two_sample_permutation_interval([5.0, 6.0, 7.0], [1.0, 2.0, 3.0])
+    assert (interval.low, interval.high) == (-np.inf, np.inf)  # 20 splits: p ≥ 0.1
+
+
+# ----------------------------------------------------------------------------- counts
+def test_counts_exact_test_by_hand():
+    """Fisher's p for 4 of 5 against 1 of 5: the hypergeometric table probabilities with 5 of
+    10 successes, summed over the tables at most as likely as the observed one."""
+    prob = [math.comb(5, k) * math.comb(5, 5 - k) / math.comb(10, 5) for k in range(6)]
+    observed = prob[4]
+    expected = sum(p for p in prob if p <= observed * (1 + 1e-9))
+    result = stats.counts_exact_test(4, 5, 1, 5)
+    assert result.fisher_p == pytest.approx(expected)  # 0.2063
+    assert result.boschloo_p <= result.fisher_p + 1e-12
+    assert stats.counts_exact_test(5, 5, 0, 5).fisher_p == pytest.approx(2 / 252)
+    assert stats.count_above([450, 2700, 2900, 430, 1200], 1000) == 3
+    with pytest.raises(ValueError, match="successes_x = 6"):
+        stats.counts_exact_test(6, 5, 0, 5)
+
+
+# ----------------------------------------------------------------------------- Welch power
+@pytest.mark.parametrize(
+    "delta, sd_x, sd_y, n_x, n_y",
+    [
+        (2.024, 1.0, 1.0, 5, 5),
+        (1.0, 1.0, 1.0, 10, 10),
+        (1.5, 1.5, 0.5, 5, 10),
+        (0.0, 1.0, 2.0, 5, 5),
+    ],
+)
+def test_welch_power_by_simulation(delta, sd_x, sd_y, n_x, n_y):
+    rng = np.random.default_rng(11)
+    draws = 40_000
+    x = rng.normal(delta, sd_x, (draws, n_x))
+    y = rng.normal(0.0, sd_y, (draws, n_y))
+    simulated = np.mean(scipy.stats.ttest_ind(x, y, axis=1, equal_var=False).pvalue < 0.05)
+    se = math.sqrt(simulated * (1 - simulated) / draws)
+    assert stats.welch_power(delta, sd_x, sd_y, n_x, n_y) == pytest.approx(simulated, abs=4 * se)
+
+
+def test_welch_detectable_difference_is_above_the_pooled_t_figure():
+    """Issue 34: the pooled-t detectable difference (2.02·SD at 5 vs 5) has 77.6% power under
+    Welch's test; Welch's own is 2.08·SD."""
+    assert stats.welch_power(2.0244, 1.0, 1.0, 5, 5) == pytest.approx(0.776, abs=0.002)
+    mdd = stats.welch_minimum_detectable_difference(1042.0, 1042.0, 5, 5)
+    assert stats.welch_power(mdd, 1042.0, 1042.0, 5, 5) == pytest.approx(0.8, abs=1e-6)
+    assert mdd > stats.minimum_detectable_difference(1042.0, 5, 5)
+    assert mdd / 1042.0 == pytest.approx(2.08, abs=0.01)
+
+
+def test_sd_interval_and_detectable_range_of_issue_34():
+    """An SD of 987 from 5 values has the 95% interval [592, 2,837] (χ² with 4 df, here
+    computed from the quantiles 0.4844 and 11.143), and the paired test on 5 pairs then detects
+    995–4,772."""
+    low, high = stats.sd_confidence_interval(987.0, 4)
+    assert low == pytest.approx(987.0 * math.sqrt(4 / 11.1433), rel=1e-4)
+    assert high == pytest.approx(987.0 * math.sqrt(4 / 0.484419), rel=1e-4)
+    dlow, dhigh = stats.detectable_difference_range(987.0, 5)
+    assert dlow == pytest.approx(stats.paired_minimum_detectable_difference(low, 5))
+    assert dhigh == pytest.approx(stats.paired_minimum_detectable_difference(high, 5))
+    assert (round(dlow, -1), round(dhigh, -1)) == (990.0, 4770.0)
+    two = stats.detectable_difference_range(1000.0, 5, 5)
+    low8, high8 = stats.sd_confidence_interval(1000.0, 8)
+    assert two[0] == pytest.approx(stats.welch_minimum_detectable_difference(low8, low8, 5, 5))
+    assert two[1] == pytest.approx(stats.welch_minimum_detectable_difference(high8, high8, 5, 5))
