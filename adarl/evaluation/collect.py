@@ -7,7 +7,6 @@ singular-value spectra, stored evaluations and policy sizes. File layout: docs/r
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +16,7 @@ import pandas as pd
 
 from adarl.errors import UsageError, reason
 from adarl.evaluation.runs import Run, config_value
+from adarl.files import UnreadableFile, read_json
 from adarl.runs.checkpoints import checkpoint_dirs, policy_files
 from adarl.runs.layout import (
     EPISODES_CSV,
@@ -86,11 +86,9 @@ def evaluations(run: Run) -> list[Evaluation]:
         if not sidecar.is_file():
             continue
         try:
-            meta = json.loads(sidecar.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:  # dropping it would change the report silently
-            raise UsageError(
-                f"evaluation sidecar {sidecar} is unreadable ({reason(exc)})"
-            ) from None
+            meta = read_json(sidecar)
+        except UnreadableFile as exc:  # dropping it would change the report silently
+            raise UsageError(f"evaluation sidecar {exc}") from None
         if not isinstance(meta, dict):
             raise UsageError(f"evaluation sidecar {sidecar} is not a JSON object")
         table = read_table(csv_path)
@@ -215,7 +213,7 @@ def best_scores(run: Run) -> tuple[pd.DataFrame, str]:
     record = {}
     if found:
         try:
-            meta = json.loads((found[-1] / META_FILE).read_text(encoding="utf-8"))
+            meta = read_json(found[-1] / META_FILE)
             record = (meta.get("best") or {}).get("seeds") or {}
         except (OSError, ValueError):
             record = {}

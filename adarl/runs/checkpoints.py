@@ -21,7 +21,7 @@ import numpy as np
 
 from adarl import __version__
 from adarl.errors import UsageError, reason
-from adarl.files import fs_errors, fsync_dir, json_default, temp_dir
+from adarl.files import fs_errors, fsync_dir, json_default, read_json, temp_dir
 from adarl.runs.layout import (
     ARRAYS_FILE,
     CHECKPOINT_DIR,
@@ -144,8 +144,8 @@ def verify_checksums(path: Path, meta: dict, names=None) -> None:
 def read_meta(path: Path) -> dict:
     """A checkpoint's meta.json; `CheckpointDamaged` (one line) if it cannot be read."""
     try:
-        meta = json.loads((path / META_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
+        meta = read_json(path / META_FILE)
+    except (OSError, ValueError) as exc:  # UnreadableFile is a ValueError
         raise CheckpointDamaged(f"checkpoint {path} is unreadable ({reason(exc)})") from exc
     if not isinstance(meta, dict):
         raise CheckpointDamaged(f"checkpoint {path} is unreadable ({META_FILE} is not an object)")

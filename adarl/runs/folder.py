@@ -18,7 +18,14 @@ import yaml
 
 from adarl import __version__
 from adarl.errors import UsageError
-from adarl.files import atomic_write_text, check_writable_dir, probe_writable
+from adarl.files import (
+    UnreadableFile,
+    atomic_write_text,
+    check_writable_dir,
+    probe_writable,
+    read_text,
+    read_yaml,
+)
 from adarl.runs.checkpoints import config_record, load_latest_intact
 from adarl.runs.layout import (
     CHECKPOINT_DIR,
@@ -86,12 +93,7 @@ def load_config(run_dir: str | os.PathLike) -> dict:
     path = run_dir / CONFIG_FILE
     if not path.exists():
         raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
-    try:
-        values = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise UsageError(f"{path} is not valid YAML ({exc.__class__.__name__})") from exc
-    except OSError as exc:
-        raise UsageError(f"{path} is unreadable ({exc.strerror or exc})") from exc
+    values = read_yaml(path)
     if not isinstance(values, dict):
         raise UsageError(f"{path} is not a run config")
     version = values.get("format_version")
@@ -230,12 +232,13 @@ def finish(run_dir: Path, step: int) -> None:
 
 
 def done_step(run_dir: str | os.PathLike) -> int | None:
-    """The final step recorded in DONE (-1 if unreadable), or None while the run is unfinished."""
+    """The final step recorded in DONE (-1 if it holds no step: not a finite number, not UTF-8
+    text, too large), or None while the run is unfinished."""
     done = Path(run_dir) / DONE_FILE
-    if not done.is_file():
+    if not os.path.lexists(done):
         return None
-    text = done.read_text(encoding="utf-8").strip()
     try:
+        text = read_text(done, max_bytes=4096).strip()
         return int(float(text.split()[0])) if text else -1
-    except ValueError:
+    except (UnreadableFile, ValueError, OverflowError):  # OverflowError: "inf"
         return -1

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from adarl.errors import UsageError
-from adarl.files import fs_errors
+from adarl.files import fs_errors, read_text
 from adarl.runs import tracking
 
 # episodes.csv: then one column p_<name> per physical parameter of the task
@@ -22,6 +22,8 @@ EVAL_COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length"]
 
 # the columns of run logs and evaluation tables that hold text; every other column holds numbers
 TEXT_COLUMNS = frozenset({"dynamics", "layer", "decision"})
+#: the largest run log `read_csv` reads (a 3M-step run's episodes.csv is a few MB)
+MAX_CSV_BYTES = 1 << 30
 
 
 def episode_columns(param_names) -> list[str]:
@@ -57,8 +59,14 @@ class CsvLog:
         self.columns = list(columns)
         new = not self.path.exists() or self.path.stat().st_size == 0
         if not new:  # appending (a resumed run): keep the file's own column order
-            with open(self.path, encoding="utf-8", newline="") as f:
-                existing = next(csv.reader(f), [])
+            with fs_errors(self.path, "read"), open(self.path, "rb") as f:
+                head = f.readline(1 << 16)
+            try:
+                existing = next(csv.reader([head.decode("utf-8")]), [])
+            except UnicodeDecodeError:
+                raise UsageError(
+                    f"{self.path} has a header that is not UTF-8 text; expected {self.columns}"
+                ) from None
             if sorted(existing) != sorted(self.columns):
                 raise UsageError(f"{self.path} has columns {existing}, expected {self.columns}")
             self.columns = existing
@@ -108,10 +116,7 @@ def _fmt(v):
 def read_csv(path: str | os.PathLike) -> list[dict]:
     """Read a run CSV, ignoring a trailing half-written line; one-line UsageError if it is not
     UTF-8 text."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise UsageError(f"{path} is not UTF-8 text (byte {exc.start}); is it a run log?") from None
+    text = read_text(path, max_bytes=MAX_CSV_BYTES)
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
     return list(csv.DictReader(io.StringIO(text)))

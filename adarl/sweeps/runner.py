@@ -39,6 +39,7 @@ from pathlib import Path
 
 from adarl.errors import UsageError
 from adarl.evaluation.summary import duration
+from adarl.files import read_json
 from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.backends import thread_env
@@ -452,8 +453,8 @@ def exit_text(returncode: int | None) -> str:
 
 def _read_json(path: Path):
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        return read_json(path)
+    except (OSError, ValueError):  # UnreadableFile is a ValueError
         return None
 
 
