@@ -39,9 +39,7 @@ def _bomb() -> str:
 
 @pytest.mark.parametrize("command", ["train --resume", "evaluate", "report", "ranks", "export"])
 @pytest.mark.parametrize("damage", ["bom", "dev-zero", "alias-bomb"])
-def test_an_unreadable_config_yaml_is_one_line_for_every_command(
-    command, damage, tmp_path, capsys
-):
+def test_an_unreadable_config_yaml_is_one_line_for_every_command(command, damage, tmp_path, capsys):
     run = write_run(tmp_path / "runs", "r", algo="adarl", seeds=(0,))
     config = run / "config.yaml"
     text = config.read_text()
