@@ -97,12 +97,31 @@ class CsvLog:
             pass
 
     @staticmethod
-    def truncate(path: str | os.PathLike, offset: int) -> None:
-        """Cut `path` back to `offset` bytes (the size recorded in a checkpoint)."""
+    def truncate(path: str | os.PathLike, offset: int, warn=None) -> None:
+        """Cut `path` back to `offset` bytes (the size recorded in a checkpoint).
+
+        A log shorter than `offset` lost its tail after the checkpoint was written (a disk or a
+        hand that cut it): its rows are gone and cannot be made again, so the resume says so in
+        one line (`warn`, default stderr) and keeps the rows that are there, cut back to the
+        last complete line (new rows must not continue a half one). A missing log is made anew
+        by `CsvLog` (with its header)."""
         path = Path(path)
-        if path.exists() and path.stat().st_size > offset:
+        size = path.stat().st_size if path.exists() else None
+        if size is not None and size > offset:
             with fs_errors(path), open(path, "r+b") as f:
                 f.truncate(offset)
+        elif offset > 0 and (size is None or size < offset):
+            warn = warn or (lambda line: print(line, file=sys.stderr, flush=True))
+            kept = 0
+            if size:
+                with fs_errors(path), open(path, "r+b") as f:
+                    kept = f.read().rfind(b"\n") + 1
+                    f.truncate(kept)
+            what = "is missing" if size is None else f"holds {size} bytes"
+            warn(
+                f"adarl: warning: {path} {what} but the checkpoint recorded {offset}: its last "
+                f"rows were lost; resuming keeps the {kept} bytes there and logs on"
+            )
 
 
 def _fmt(v):

@@ -246,7 +246,7 @@ def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkey
     assert (tmp_path / "child" / "config.yaml").exists() and not checkpoints.checkpoint_dirs(
         tmp_path / "child"
     )
-    with pytest.raises(UsageError, match="was interrupted while being made .*; fork again"):
+    with pytest.raises(UsageError, match="was interrupted while being made .*: remove it and fork"):
         sac_learner.train(planned.config, tmp_path / "child", resume=True, progress=False)
 
 
