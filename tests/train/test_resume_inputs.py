@@ -83,8 +83,15 @@ def one_line_exit_2(argv, capsys, *needles) -> str:
 @pytest.mark.parametrize("field", ["total_steps", "eval_every", "seeds", "dynamics", "lr_actor"])
 @pytest.mark.parametrize("edit", ["deleted", "null", "empty"])
 def test_a_config_field_missing_or_null_is_refused_on_resume(
-    sac_run, tmp_path, capsys, field, edit
+    sac_run, tmp_path, capsys, monkeypatch, field, edit
 ):
+    validate = sac_config.SACConfig.validate
+
+    def no_default_budget(self):  # a filled-in default would train 3M steps: fail at once
+        assert self.total_steps == 1000, f"total_steps {self.total_steps} filled in"
+        return validate(self)
+
+    monkeypatch.setattr(sac_config.SACConfig, "validate", no_default_budget)
     run_dir = unfinished(sac_run, tmp_path / "run", drop_last_checkpoint=True)
     doc = yaml.safe_load((run_dir / "config.yaml").read_text())
     recorded = doc.pop(field)
