@@ -425,7 +425,7 @@ def last_train_row(path: Path) -> tuple[int, float] | None:
     """(step, steps_per_s) of the last complete row of a run's train.csv, if it has one."""
     try:
         with open(path, "rb") as f:
-            header = f.readline().decode().strip().split(",")
+            header = f.readline(1 << 16).decode(errors="replace").strip().split(",")
             f.seek(0, os.SEEK_END)
             size = f.tell()
             f.seek(max(0, size - 4096))
