@@ -217,3 +217,17 @@ def test_a_non_empty_folder_without_a_run_is_not_offered_to_resume(sac_run, tmp_
     (out / "episodes.csv").write_text("step\n")  # a fork killed before its config.yaml
     err = one_line_exit_2(_fork(sac_run, out), capsys, "holds no run", f"rm -r {out}")
     assert "--resume" not in err
+
+
+def test_an_environment_json_nested_200000_deep_is_one_warning_on_resume(sac_run, tmp_path, capsys):
+    """The record of the resumes is not the run: the resume says in one line that it cannot add
+    to it (no RecursionError), leaves the file as it is and finishes the run exactly."""
+    run_dir = unfinished(sac_run, tmp_path / "run", drop_last_checkpoint=True)
+    deep = "[" * 200_000 + "]" * 200_000
+    (run_dir / "environment.json").write_text(deep)
+    assert resume(run_dir) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "environment.json is nested too deep" in err, err
+    assert (run_dir / "environment.json").read_text() == deep
+    for name in ("episodes.csv", "train.csv", "eval.csv"):
+        assert rows(run_dir, name) == rows(sac_run, name), name
