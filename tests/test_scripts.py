@@ -40,6 +40,8 @@ def test_bench_throughput_runs_at_a_tiny_size():
     [
         ["bench/envs.py", "--steps", "50", "--rounds", "1", "--tasks", "hopper"],
         ["bench/ompo_refresh.py", "--steps", "50"],
+        # policy files replaced after write_run: the checkpoint's checksums must follow
+        ["bench/suites.py", "--suite", "m2td3-1d", "--workers", "1", "--steps", "100"],
     ],
 )
 def test_bench_scripts_run_at_a_tiny_size(argv):
