@@ -1,5 +1,7 @@
-"""Smoke tests of the scripts under bench/ (issue 38: `python bench/throughput.py`, the README's
-speed command, ended in a traceback in its RNAC part): each runs at a tiny size and exits 0."""
+"""Smoke tests of the scripts under bench/ and docs/experiments/ (issue 38: `python
+bench/throughput.py`, the README's speed command, ended in a traceback in its RNAC part): each
+runs at a tiny size and exits 0. bench/same_bits.py has its own tests (tests/test_same_bits.py);
+bench/parity.py needs Stable-Baselines3 (skipped without it)."""
 
 import subprocess
 import sys
@@ -42,10 +44,19 @@ def test_bench_throughput_runs_at_a_tiny_size():
         ["bench/ompo_refresh.py", "--steps", "50"],
         # policy files replaced after write_run: the checkpoint's checksums must follow
         ["bench/suites.py", "--suite", "m2td3-1d", "--workers", "1", "--steps", "100"],
+        ["bench/throughput_rnac.py", "--steps", "256"],
     ],
 )
 def test_bench_scripts_run_at_a_tiny_size(argv):
     assert run_script(*argv)
+
+
+def test_bench_parity_runs_at_a_tiny_size(tmp_path):
+    pytest.importorskip("stable_baselines3")  # pip install -e .[bench]
+    out = run_script("bench/parity.py", "--steps", "200", "--seeds", "0", "--eval-every", "100",
+                     "--eval-episodes", "1", "--sb3-procs", "1", "--start-steps", "50",
+                     "--update-after", "50", "--out", str(tmp_path / "parity"))  # fmt: skip
+    assert (tmp_path / "parity" / "summary.md").is_file(), out
 
 
 # ----------------------------------------------------------------------------- docs/experiments
@@ -101,7 +112,7 @@ def test_mechanism_and_paper_schedule_run_on_a_sweep(tmp_path):
     assert out and figure.with_suffix(".png").is_file()
 
 
-def test_recheck_recomputes_the_committed_tables(tmp_path):
+def test_recheck_runs_on_a_copy_of_the_committed_tables(tmp_path):
     import shutil
 
     copy = shutil.copytree(EXPERIMENTS, tmp_path / "experiments")
