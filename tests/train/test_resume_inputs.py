@@ -231,3 +231,14 @@ def test_an_environment_json_nested_200000_deep_is_one_warning_on_resume(sac_run
     assert (run_dir / "environment.json").read_text() == deep
     for name in ("episodes.csv", "train.csv", "eval.csv"):
         assert rows(run_dir, name) == rows(sac_run, name), name
+
+
+def test_a_log_header_that_is_not_utf8_is_one_line_on_resume(sac_run, tmp_path, capsys):
+    run_dir = unfinished(sac_run, tmp_path / "run", drop_last_checkpoint=True)
+    data = (run_dir / "train.csv").read_bytes()
+    (run_dir / "train.csv").write_bytes(b"\xff\xfe" + data[2:])  # same size: offsets still fit
+    one_line_exit_2(
+        ["train", "--resume", str(run_dir), "--no-progress"],
+        capsys,
+        "train.csv has a header that is not UTF-8 text",
+    )
