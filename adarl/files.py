@@ -12,6 +12,7 @@ import os
 import secrets
 import shutil
 import socket
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -175,3 +176,173 @@ def probe_writable(folder: Path) -> str | None:
     os.close(fd)
     os.unlink(probe)
     return None
+
+
+# ----------------------------------------------------------------------------- reading back
+# Every file adarl reads back (config.yaml, environment.json, meta.json, DONE, .lock, a sweep
+# file, a sweep's manifest) goes through `read_text` / `read_json` / `read_yaml`: a regular file
+# (not a device, FIFO or folder, whatever a link points to), at most `max_bytes`, strict UTF-8,
+# and (JSON, YAML) nested at most `MAX_DEPTH` deep and at most `MAX_NODES` values once YAML's
+# aliases are expanded. Anything else is one `UsageError` line naming the file (exit code 2);
+# docs/reliability.md.
+MAX_TEXT_BYTES = 16 << 20
+MAX_YAML_BYTES = 1 << 20
+MAX_DEPTH = 100
+MAX_NODES = 1_000_000
+
+
+class UnreadableFile(UsageError):
+    """A file adarl reads back is not what it wrote: not a regular file, too large, not UTF-8,
+    not valid JSON/YAML, nested too deep or too large once expanded (one line, exit code 2)."""
+
+
+def read_bytes(
+    path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, head: bool = False
+) -> bytes:
+    """The bytes of the regular file `path` (links followed), at most `max_bytes`; else a
+    one-line `UnreadableFile`. With `head`, its first `max_bytes` bytes, whatever its size."""
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # O_NONBLOCK: a FIFO cannot hang us
+    except OSError as exc:
+        raise UnreadableFile(f"{path} is unreadable ({exc.strerror or exc})") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise UnreadableFile(
+                f"{path} is not a regular file ({_file_kind(info.st_mode)}); "
+                "adarl reads only regular files there"
+            )
+        if info.st_size > max_bytes and not head:
+            raise UnreadableFile(
+                f"{path} is {info.st_size} bytes; allowed: at most {max_bytes} (is it the "
+                "file adarl wrote?)"
+            )
+        chunks, size = [], 0
+        while size <= max_bytes:
+            chunk = os.read(fd, min(1 << 20, max_bytes + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise UnreadableFile(f"{path} is unreadable ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+    if head:
+        return b"".join(chunks)[:max_bytes]
+    if size > max_bytes:  # grew while read
+        raise UnreadableFile(f"{path} is over {max_bytes} bytes; allowed: at most {max_bytes}")
+    return b"".join(chunks)
+
+
+def _file_kind(mode: int) -> str:
+    for test, kind in (
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
+        if test(mode):
+            return kind
+    return "not a plain file"
+
+
+def read_text(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES) -> str:
+    """`read_bytes` decoded strictly as UTF-8; a one-line `UnreadableFile` if it is not."""
+    data = read_bytes(path, max_bytes)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise UnreadableFile(
+            f"{path} is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); "
+            "adarl writes its files as UTF-8"
+        ) from None
+
+
+def read_json(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES):
+    """The JSON value in `path` (see `read_text`), nested at most `MAX_DEPTH` deep."""
+    text = read_text(path, max_bytes)
+    try:
+        value = json.loads(text)
+    except RecursionError:
+        raise UnreadableFile(
+            f"{path} is nested too deep; allowed: at most {MAX_DEPTH} levels"
+        ) from None
+    except ValueError as exc:  # JSONDecodeError, an integer of too many digits
+        raise UnreadableFile(f"{path} is unreadable (not valid JSON: {_one_line(exc)})") from None
+    check_shape(value, path)
+    return value
+
+
+def read_yaml(path: str | os.PathLike, max_bytes: int = MAX_YAML_BYTES):
+    """The YAML value in `path` (see `read_text`), read with yaml's safe loader, nested at most
+    `MAX_DEPTH` deep and at most `MAX_NODES` values with its aliases expanded (an alias bomb is
+    refused, not expanded), without cycles."""
+    import yaml
+
+    text = read_text(path, max_bytes)
+    try:
+        value = yaml.safe_load(text)
+    except RecursionError:
+        raise UnreadableFile(
+            f"{path} is nested too deep; allowed: at most {MAX_DEPTH} levels"
+        ) from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or type(exc).__name__
+        raise UnreadableFile(f"{path} is not valid YAML{where}: {_one_line(problem)}") from None
+    except ValueError as exc:  # e.g. an integer of too many digits
+        raise UnreadableFile(f"{path} is not valid YAML ({_one_line(exc)})") from None
+    check_shape(value, path)
+    return value
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).split())
+
+
+def check_shape(value, path) -> None:
+    """A one-line `UnreadableFile` if the lists and dicts of `value` nest deeper than
+    `MAX_DEPTH`, refer to themselves, or hold more than `MAX_NODES` values when shared ones
+    (YAML aliases) are counted each time they appear. Linear in the distinct values."""
+    sizes: dict[int, tuple[int, int]] = {}  # id -> (expanded size, depth)
+    active: set[int] = set()
+    stack = [(value, False)]
+    while stack:
+        node, done = stack.pop()
+        if not isinstance(node, dict | list):
+            continue
+        key = id(node)
+        children = list(node.values()) if isinstance(node, dict) else node
+        if isinstance(node, dict):
+            children = children + list(node.keys())
+        if done:
+            active.discard(key)
+            size, depth = 1, 1
+            for child in children:
+                s, d = sizes.get(id(child), (1, 0)) if isinstance(child, dict | list) else (1, 0)
+                size += s
+                depth = max(depth, d + 1)
+            if depth > MAX_DEPTH:
+                raise UnreadableFile(
+                    f"{path} is nested too deep; allowed: at most {MAX_DEPTH} levels"
+                )
+            if size > MAX_NODES:
+                raise UnreadableFile(
+                    f"{path} holds over {MAX_NODES} values once its aliases are expanded "
+                    "(an alias bomb?); adarl refuses it"
+                )
+            sizes[key] = (size, depth)
+            continue
+        if key in sizes:
+            continue
+        if key in active:
+            raise UnreadableFile(f"{path} refers to itself (a recursive alias); adarl refuses it")
+        if len(active) >= MAX_DEPTH:
+            raise UnreadableFile(f"{path} is nested too deep; allowed: at most {MAX_DEPTH} levels")
+        active.add(key)
+        stack.append((node, True))
+        stack.extend((child, False) for child in children)

@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import argparse
 import copy
+import json
 import multiprocessing
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 HIDDEN = 256
 
@@ -64,7 +66,7 @@ def main(argv: list[str] | None = None) -> None:
     from adarl.evaluation.runs import find_runs
     from adarl.evaluation.synthetic import policy_arrays, write_run
     from adarl.policy import save
-    from adarl.runs.checkpoints import policy_files, select_checkpoint
+    from adarl.runs.checkpoints import file_sha256, policy_files, select_checkpoint
 
     suite = suites.get_suite(args.suite, args.task)
     with tempfile.TemporaryDirectory() as tmp:
@@ -73,6 +75,10 @@ def main(argv: list[str] | None = None) -> None:
         policy = str(policy_files(select_checkpoint(run.path))[0])
         obs_dim, act_dim = _dims(args.task)
         save(policy, policy_arrays(obs_dim, act_dim, seed=0, hidden=HIDDEN))
+        meta_path = Path(policy).parent / "meta.json"  # the checkpoint's checksum of the new file
+        meta = json.loads(meta_path.read_text())
+        meta["files_sha256"][Path(policy).name] = file_sha256(policy)
+        meta_path.write_text(json.dumps(meta))
 
         units = suites.plan_suite([run], args.suite, args.episodes)
         start = time.perf_counter()

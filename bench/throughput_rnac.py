@@ -5,8 +5,8 @@ sets, and what double sampling costs.
     python bench/throughput_rnac.py --steps 40960 --seeds 5
 
 Each setting runs `adarl.train.rnac_learner.train` in a temporary folder with the default (paper/original)
-hyperparameters, no evaluation and one checkpoint at the end, after a one-rollout run that compiles
-the update. Also measured in the same process: the simulator alone (random actions through
+hyperparameters, one one-episode evaluation and one checkpoint at the end, after a one-rollout
+run that compiles the update. Also measured in the same process: the simulator alone (random actions through
 `adarl.envs.make`). Throughputs are given per wall-clock second and per CPU second of this process
 (the latter is the steadier figure when other jobs share the machine). Reported:
 
@@ -97,7 +97,8 @@ def train_throughput(task: str, steps: int, seeds: int, **overrides) -> dict:
         task=task,
         seeds=tuple(range(seeds)),
         total_steps=steps,
-        eval_episodes=0,
+        eval_every=10**12,  # RNAC refuses eval_episodes 0: one 1-episode evaluation, at the end
+        eval_episodes=1,
         checkpoint_every=10**12,
         **overrides,
     )
@@ -145,12 +146,15 @@ def update_seconds(seeds: int) -> float:
     return (time.perf_counter() - start) / 3
 
 
-def report(steps: int = 20480, task: str = "hopper") -> None:
-    """RNAC lines for bench/throughput.py: steps/s of `ipm` and `ds`, and the DS cost factor."""
+def report(steps: int = 20480, task: str = "hopper", **overrides) -> None:
+    """RNAC lines for bench/throughput.py: steps/s of `ipm` and `ds`, and the DS cost factor
+    (`overrides`: config fields, e.g. a smaller rollout for a smoke test)."""
     rnac_learner.ShadowSimulator = CountingShadow
     rates = {}
     for name in ("ipm", "ds"):
-        rates[name] = train_throughput(task, steps, 1, uncertainty_set=name)["per_seed"]
+        rates[name] = train_throughput(task, steps, 1, uncertainty_set=name, **overrides)[
+            "per_seed"
+        ]
         print(f"rnac   {name:3s} 1 seed: {rates[name]:8.1f} steps/s")
     print(f"       double sampling costs {rates['ipm'] / rates['ds']:.2f}x the time of ipm")
 

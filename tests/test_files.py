@@ -62,3 +62,62 @@ def test_every_file_and_folder_follows_the_umask(umask, file_mode, dir_mode, tmp
     for path in made:
         expected = dir_mode if path.is_dir() else file_mode
         assert path.stat().st_mode & 0o777 == expected, path
+
+
+# ----------------------------------------------------------------------------- reading back
+# issue 38, class 1: every file adarl reads back goes through one reader (adarl.files)
+def test_the_reader_refuses_what_is_not_a_regular_utf8_file(tmp_path):
+    from adarl.files import UnreadableFile, read_json, read_text, read_yaml
+
+    (tmp_path / "ok.yaml").write_text("a: [1, 2]\nb: café\n", encoding="utf-8")
+    assert read_yaml(tmp_path / "ok.yaml") == {"a": [1, 2], "b": "café"}
+    (tmp_path / "bom.yaml").write_bytes(b"\xff\xfea: 1\n")
+    with pytest.raises(UnreadableFile, match=r"bom.yaml is not UTF-8 text \(byte 0xff at offset 0"):
+        read_yaml(tmp_path / "bom.yaml")
+    (tmp_path / "zero.yaml").symlink_to("/dev/zero")  # read whole, it would fill the memory
+    with pytest.raises(UnreadableFile, match="zero.yaml is not a regular file .a character device"):
+        read_yaml(tmp_path / "zero.yaml")
+    os.mkfifo(tmp_path / "fifo.json")  # opening it for reading must not wait for a writer
+    with pytest.raises(UnreadableFile, match="fifo.json is not a regular file .a FIFO"):
+        read_json(tmp_path / "fifo.json")
+    (tmp_path / "big.txt").write_bytes(b"x" * 101)
+    with pytest.raises(UnreadableFile, match="big.txt is 101 bytes; allowed: at most 100"):
+        read_text(tmp_path / "big.txt", max_bytes=100)
+    assert read_text(tmp_path / "big.txt", max_bytes=101) == "x" * 101
+    with pytest.raises(UnreadableFile, match="missing.json is unreadable .No such file"):
+        read_json(tmp_path / "missing.json")
+
+
+@pytest.mark.parametrize("depth, ok", [(100, True), (101, False), (200_000, False)])
+def test_the_reader_bounds_the_depth_of_json(depth, ok, tmp_path):
+    from adarl.files import UnreadableFile, read_json
+
+    (tmp_path / "deep.json").write_text("[" * depth + "]" * depth)
+    if ok:
+        value = read_json(tmp_path / "deep.json")
+        for _ in range(depth - 1):
+            (value,) = value
+        assert value == []
+    else:
+        with pytest.raises(UnreadableFile, match="nested too deep; allowed: at most 100 levels"):
+            read_json(tmp_path / "deep.json")
+
+
+def test_the_reader_bounds_yaml_depth_aliases_and_cycles(tmp_path):
+    from adarl.files import UnreadableFile, read_yaml
+
+    (tmp_path / "deep.yaml").write_text("a: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(UnreadableFile, match="nested too deep"):
+        read_yaml(tmp_path / "deep.yaml")
+    # a billion laughs: 9 levels of 9 aliases, 9**9 strings once expanded
+    lines = ['a0: &a0 ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
+    lines += [f"a{i}: &a{i} [" + ",".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 9)]
+    (tmp_path / "bomb.yaml").write_text("\n".join(lines) + "\ncommand: *a8\n")
+    with pytest.raises(UnreadableFile, match="over 1000000 values once its aliases are expanded"):
+        read_yaml(tmp_path / "bomb.yaml")
+    (tmp_path / "cycle.yaml").write_text("a: &x [1, *x]\n")
+    with pytest.raises(UnreadableFile, match="refers to itself"):
+        read_yaml(tmp_path / "cycle.yaml")
+    # aliases a user writes in a sweep file are fine while they expand to a sane size
+    (tmp_path / "shared.yaml").write_text("base: &b {lr: 1, seeds: [0, 1]}\nx: *b\ny: *b\n")
+    assert read_yaml(tmp_path / "shared.yaml")["y"] == {"lr": 1, "seeds": [0, 1]}

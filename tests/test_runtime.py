@@ -33,3 +33,66 @@ def test_available_cores_follow_the_affinity_and_the_machine_elsewhere(monkeypat
     monkeypatch.delattr(os, "sched_getaffinity")
     monkeypatch.setattr(os, "cpu_count", lambda: 7)
     assert runtime.available_cores() == 7
+
+
+# ----------------------------------------------------------------------------- issue 38, class 5
+def test_mujoco_gl_is_checked_as_mujoco_would(monkeypatch):
+    import pytest
+
+    from adarl.errors import UsageError
+    from adarl.runtime import check_mujoco_gl
+
+    for ok in ("egl", "OSMesa", " glfw ", "disable", "0", ""):
+        monkeypatch.setenv("MUJOCO_GL", ok)
+        check_mujoco_gl()
+    monkeypatch.delenv("MUJOCO_GL")
+    check_mujoco_gl()
+    for bad in ("garbage", "wgl", "egl,osmesa"):  # wgl: Windows only
+        monkeypatch.setenv("MUJOCO_GL", bad)
+        with pytest.raises(UsageError, match=f"MUJOCO_GL={bad!r} is not a MuJoCo rendering"):
+            check_mujoco_gl()
+
+
+def test_adarls_own_xla_flags_are_checked_without_starting_jax(monkeypatch):
+    import pytest
+
+    from adarl import runtime
+    from adarl.errors import UsageError
+
+    def no_probe(*args):
+        raise AssertionError("started a child process")
+
+    monkeypatch.setattr(runtime, "_jax_start_failure", no_probe)
+    monkeypatch.delenv("JAX_PLATFORMS", raising=False)
+    for flags, needle in [
+        ("--xla_force_host_platform_device_count=0", "with N >= 1"),
+        ("--xla_force_host_platform_device_count=abc", "with N >= 1"),
+        ("--xla_force_host_platform_device_count=-2", "with N >= 1"),
+        ("--xla_cpu_multi_thread_eigen=maybe", "=true|false"),
+    ]:
+        monkeypatch.setenv("XLA_FLAGS", flags)
+        with pytest.raises(UsageError, match=f"XLA_FLAGS has {flags}; allowed.*{needle}"):
+            runtime.check_jax_backend()
+    monkeypatch.setenv("XLA_FLAGS", " ".join(runtime.xla_flags(4)))
+    monkeypatch.setenv("JAX_PLATFORMS", "cpu")
+    runtime.check_jax_backend()  # adarl's own settings: nothing to try
+
+
+def test_a_backend_jax_cannot_start_is_one_line_before_the_run_folder(
+    tmp_path, capsys, monkeypatch
+):
+    from adarl.cli.main import main
+
+    out = tmp_path / "run"
+    argv = ["train", "--algo", "sac", "--preset", "smoke", "--total-steps", "200", "--out",
+            str(out), "--no-progress"]  # fmt: skip
+    for name, value, needle in [
+        ("JAX_PLATFORMS", "tpu", "Unable to initialize backend 'tpu'"),
+        ("XLA_FLAGS", "--xla_no_such_flag=1", "Unknown flag in XLA_FLAGS: --xla_no_such_flag=1"),
+    ]:
+        with monkeypatch.context() as m:
+            m.setenv(name, value)
+            assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and needle in err and "JAX cannot start" in err, err
+        assert not out.exists()

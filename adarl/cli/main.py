@@ -15,7 +15,7 @@ from adarl import __version__
 from adarl.cli import evaluate, export, play, ranks, report, sweep, tasks, theory, train
 from adarl.cli.common import add_common_arguments
 from adarl.errors import REPORTED, failure
-from adarl.runtime import configure_xla
+from adarl.runtime import check_process_environment, configure_xla
 
 COMMANDS = {
     "train": train,
@@ -70,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        check_process_environment(args.command)  # MUJOCO_GL, JAX_PLATFORMS, XLA_FLAGS
         return int(args._run(args) or 0)
     except REPORTED as exc:
         code, message = failure(f"adarl {args.command}", exc)

@@ -104,6 +104,8 @@ def check_given(name: str, value, default: float) -> float:
     the allowed sign within the plausible range around the task's `default`, as a float; else a
     one-line `UsageError` naming the value and that range (not only the sign)."""
     try:
+        if type(value).__name__ in ("bool", "bool_"):  # True is 1 (numpy's too), no length
+            raise UsageError(name)
         number = PARAMS[name].check(value)
     except UsageError:
         low, high, why = plausible_range(name, default)

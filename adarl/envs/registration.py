@@ -32,7 +32,7 @@ def register_envs() -> None:
         if env_id not in gymnasium.registry:
             gymnasium.register(
                 env_id,
-                entry_point="adarl.envs.registration:TaskEnv",
+                entry_point=_entry_point(env_id, task),
                 kwargs={"task": task},
                 max_episode_steps=MAX_EPISODE_STEPS,
             )
@@ -132,3 +132,31 @@ class TaskEnv(gymnasium.Env):
 
     def close(self):
         self.env.close()
+
+
+class _IdEntryPoint:
+    """The entry point of one id: `TaskEnv` of the id's task. Gymnasium passes the registered
+    `task=` with the caller's keywords on top, so a `task=` naming another task (an undocumented
+    keyword: the id names the task) is refused in one line, not built under the wrong id."""
+
+    metadata = TaskEnv.metadata
+
+    def __init__(self, env_id: str, task: str):
+        self.env_id, self.task = env_id, task
+
+    def __call__(self, task: str | None = None, **kwargs) -> TaskEnv:
+        if task is not None and task != self.task:
+            other = next((i for i, t in IDS.items() if t == task), None)
+            instead = f'gymnasium.make("{other}", ...)' if other else f"one of {', '.join(IDS)}"
+            raise UsageError(
+                f"gymnasium.make({self.env_id!r}) takes no task={task!r}: the id names the task "
+                f"({self.task}); for {task} use {instead}"
+            )
+        return TaskEnv(task=self.task, **kwargs)
+
+
+def _entry_point(env_id: str, task: str) -> str:
+    """A "module:attribute" entry point of `env_id` (Gymnasium resolves it on `make`)."""
+    name = f"make_{task}"
+    globals()[name] = _IdEntryPoint(env_id, task)
+    return f"{__name__}:{name}"

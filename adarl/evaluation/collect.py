@@ -7,7 +7,7 @@ singular-value spectra, stored evaluations and policy sizes. File layout: docs/r
 
 from __future__ import annotations
 
-import json
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +17,7 @@ import pandas as pd
 
 from adarl.errors import UsageError, reason
 from adarl.evaluation.runs import Run, config_value
+from adarl.files import UnreadableFile, read_json
 from adarl.runs.checkpoints import checkpoint_dirs, policy_files
 from adarl.runs.layout import (
     EPISODES_CSV,
@@ -36,31 +37,72 @@ CURVE_BINS = 50
 MAX_EPISODE_STEPS = 1000  # the environments' time limit (`adarl.envs.make`), `adarl evaluate`'s
 
 
+#: The columns the report reads from each run log (`needed_columns`): the log must have them,
+#: and those in `FINITE` must hold a finite number in every row (issue 38: a `nan`, `inf` or
+#: renamed column would otherwise be a traceback or NaN statistics).
+NEEDED = {
+    EVAL_CSV: ("step", "seed", "dynamics", "episode", "return"),
+    EPISODES_CSV: ("step", "seed", "episode", "return"),
+    TRAIN_CSV: ("step", "seed"),
+    TRUNCATIONS_CSV: ("step", "seed", "layer", "new_rank"),
+}
+EVALUATION_NEEDED = ("step", "seed", "dynamics", "episode", "return")  # evaluations/*.csv
+FINITE = frozenset({"step", "seed", "episode", "return", "new_rank"})
+
+
+def needed_columns(path: Path) -> tuple[str, ...]:
+    if Path(path).parent.name == EVALUATIONS_DIR:
+        return EVALUATION_NEEDED
+    return NEEDED.get(Path(path).name, ())
+
+
 def read_table(path: Path) -> pd.DataFrame:
     """A run CSV as a DataFrame, every column but the `TEXT_COLUMNS` as numbers (an empty cell:
-    NaN); empty if the file is missing. A cell that is no number: a one-line UsageError naming
-    the file, its line and column."""
+    NaN); empty if the file is missing. A cell that is no number, a missing `needed_columns`
+    column or a non-finite value in one of them (`FINITE`): a one-line UsageError naming the
+    file, its line and column."""
     if not Path(path).is_file():
         return pd.DataFrame()
     df = pd.DataFrame(read_csv(path))
+    needed = needed_columns(path)
+    if len(df):
+        missing = [c for c in needed if c not in df.columns]
+        if missing:
+            raise UsageError(
+                f"{path} has no column {missing[0]!r} (its columns: {', '.join(df.columns)}); "
+                f"adarl writes it with {', '.join(needed)}: restore the file or leave the run "
+                "out of the report"
+            )
     for column in df.columns:
         if column in TEXT_COLUMNS:
             continue
+        finite = column in needed and column in FINITE
         for line, text in enumerate(df[column], start=2):  # line 1: the header
-            _check_number(text, path, column, line)
-        df[column] = pd.to_numeric(df[column].replace("", np.nan))
+            _check_number(text, path, column, line, finite)
+        try:
+            df[column] = pd.to_numeric(df[column].replace("", np.nan))
+        except ValueError:  # pandas refuses "nan" or "inf" beside numbers: checked above
+            df[column] = [np.nan if t is None or t == "" else float(t) for t in df[column]]
     return df
 
 
-def _check_number(text, path: Path, column: str, line: int) -> None:
-    if text is None or text == "":  # a short row, an empty cell: NaN
+def _check_number(text, path: Path, column: str, line: int, finite: bool = False) -> None:
+    if (text is None or text == "") and not finite:  # a short row, an empty cell: NaN
         return
     try:
-        float(text)  # "nan" and "inf" too, as CsvLog writes non-finite values
+        value = float(text)  # "nan" and "inf" too, as CsvLog writes non-finite values
     except (TypeError, ValueError):
+        if finite and (text is None or text == ""):  # an empty cell where a number must be
+            value = math.nan
+        else:
+            raise UsageError(
+                f"{path} line {line}: {column} is {text!r}, not a number; is the file damaged?"
+            ) from None
+    if finite and not math.isfinite(value):
         raise UsageError(
-            f"{path} line {line}: {column} is {text!r}, not a number; is the file damaged?"
-        ) from None
+            f"{path} line {line}: {column} is {text!r}; allowed: a finite number (the "
+            "statistics cannot take it): restore the file or leave the run out of the report"
+        )
 
 
 # ----------------------------------------------------------------------------- evaluations
@@ -86,11 +128,9 @@ def evaluations(run: Run) -> list[Evaluation]:
         if not sidecar.is_file():
             continue
         try:
-            meta = json.loads(sidecar.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:  # dropping it would change the report silently
-            raise UsageError(
-                f"evaluation sidecar {sidecar} is unreadable ({reason(exc)})"
-            ) from None
+            meta = read_json(sidecar)
+        except UnreadableFile as exc:  # dropping it would change the report silently
+            raise UsageError(f"evaluation sidecar {exc}") from None
         if not isinstance(meta, dict):
             raise UsageError(f"evaluation sidecar {sidecar} is not a JSON object")
         table = read_table(csv_path)
@@ -215,7 +255,7 @@ def best_scores(run: Run) -> tuple[pd.DataFrame, str]:
     record = {}
     if found:
         try:
-            meta = json.loads((found[-1] / META_FILE).read_text(encoding="utf-8"))
+            meta = read_json(found[-1] / META_FILE)
             record = (meta.get("best") or {}).get("seeds") or {}
         except (OSError, ValueError):
             record = {}

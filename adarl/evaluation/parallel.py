@@ -11,7 +11,11 @@ the number of workers, so the files written do not depend on them.
 from __future__ import annotations
 
 import multiprocessing
+import os
+import signal
 import sys
+import threading
+import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -80,7 +84,7 @@ def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
             _tick(bar)
         return results
     results: list = [None] * len(units)
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    pool = local_pool(workers)
     try:
         futures = {pool.submit(run_unit, unit): i for i, unit in enumerate(units)}
         for future in as_completed(futures):
@@ -91,6 +95,40 @@ def _run_local(units: Sequence, workers: int, bar) -> list[list[dict]]:
         raise
     pool.shutdown()
     return results
+
+
+def local_pool(workers: int) -> ProcessPoolExecutor:
+    """A `spawn` pool of `workers` processes that exit when this process dies (killed, it cannot
+    shut them down; idle ones would otherwise wait on their queue for ever)."""
+    return ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=exit_with_parent,
+        initargs=(os.getpid(),),
+    )
+
+
+def exit_with_parent(parent: int, poll_s: float = 1.0) -> None:
+    """In a worker process: exit as soon as process `parent` is gone. On Linux the kernel sends
+    SIGKILL when the parent dies (PR_SET_PDEATHSIG); everywhere a daemon thread checks every
+    `poll_s` seconds that the worker still has that parent."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # died before we could ask
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(poll_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 def _run_ray(units: Sequence, workers: int, address: str | None, bar) -> list[list[dict]]:

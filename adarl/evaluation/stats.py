@@ -604,8 +604,10 @@ def _solve_difference(power_of, target: float) -> float:
     if power_of(0.0) >= target:
         return 0.0
     high = 1.0
-    while power_of(high) < target:
+    while (reached := power_of(high)) < target:
         high *= 2.0
+    if not np.isfinite(reached):  # scipy's noncentral t gives NaN at large λ for 1 df
+        return float("nan")
     return float(scipy.optimize.brentq(lambda d: power_of(d) - target, 0.0, high, xtol=1e-10))
 
 

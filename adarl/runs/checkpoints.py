@@ -21,7 +21,7 @@ import numpy as np
 
 from adarl import __version__
 from adarl.errors import UsageError, reason
-from adarl.files import fs_errors, fsync_dir, json_default, temp_dir
+from adarl.files import fs_errors, fsync_dir, json_default, read_json, temp_dir
 from adarl.runs.layout import (
     ARRAYS_FILE,
     CHECKPOINT_DIR,
@@ -144,8 +144,8 @@ def verify_checksums(path: Path, meta: dict, names=None) -> None:
 def read_meta(path: Path) -> dict:
     """A checkpoint's meta.json; `CheckpointDamaged` (one line) if it cannot be read."""
     try:
-        meta = json.loads((path / META_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
+        meta = read_json(path / META_FILE)
+    except (OSError, ValueError) as exc:  # UnreadableFile is a ValueError
         raise CheckpointDamaged(f"checkpoint {path} is unreadable ({reason(exc)})") from exc
     if not isinstance(meta, dict):
         raise CheckpointDamaged(f"checkpoint {path} is unreadable ({META_FILE} is not an object)")
@@ -167,6 +167,7 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dic
         raise
     except Exception as exc:  # BadZipFile, EOFError, OSError, ValueError, …: all mean damaged
         raise CheckpointDamaged(f"checkpoint {path} is unreadable ({reason(exc)})") from exc
+    check_csv_offsets(path, meta)
     if meta.get("format_version") != RUN_FORMAT_VERSION:
         raise UsageError(
             f"checkpoint {path} has format version {meta.get('format_version')!r}; "
@@ -249,6 +250,22 @@ def restore_rngs(meta: dict, seeds) -> list[np.random.Generator]:
         rng.bit_generator.state = state
         rngs.append(rng)
     return rngs
+
+
+def check_csv_offsets(path: Path, meta: dict) -> None:
+    """`CheckpointDamaged` unless meta.json's `csv_offsets` (if any) maps names to byte offsets:
+    integers ≥ 0 (a negative one would cut a log from its end, a bool is no offset)."""
+    offsets = meta.get("csv_offsets", {})
+    if not isinstance(offsets, dict):
+        raise CheckpointDamaged(
+            f"checkpoint {path} is damaged (csv_offsets in {META_FILE} is not an object)"
+        )
+    for name, offset in offsets.items():
+        if isinstance(offset, bool) or not isinstance(offset, int) or offset < 0:
+            raise CheckpointDamaged(
+                f"checkpoint {path} is damaged (csv_offsets[{name!r}] in {META_FILE} is "
+                f"{offset!r}; allowed: a byte offset, an integer >= 0)"
+            )
 
 
 def csv_offsets(meta: dict) -> dict[str, int]:

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import json
 import os
+import shlex
 import sys
 from pathlib import Path
 
@@ -18,7 +20,14 @@ import yaml
 
 from adarl import __version__
 from adarl.errors import UsageError
-from adarl.files import atomic_write_text, check_writable_dir, probe_writable
+from adarl.files import (
+    UnreadableFile,
+    atomic_write_text,
+    check_writable_dir,
+    probe_writable,
+    read_text,
+    read_yaml,
+)
 from adarl.runs.checkpoints import config_record, load_latest_intact
 from adarl.runs.layout import (
     CHECKPOINT_DIR,
@@ -26,6 +35,7 @@ from adarl.runs.layout import (
     DONE_FILE,
     EPISODES_CSV,
     EVAL_CSV,
+    LOCK_FILE,
     RUN_FORMAT_VERSION,
     TRAIN_CSV,
 )
@@ -86,12 +96,7 @@ def load_config(run_dir: str | os.PathLike) -> dict:
     path = run_dir / CONFIG_FILE
     if not path.exists():
         raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
-    try:
-        values = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise UsageError(f"{path} is not valid YAML ({exc.__class__.__name__})") from exc
-    except OSError as exc:
-        raise UsageError(f"{path} is unreadable ({exc.strerror or exc})") from exc
+    values = read_yaml(path)
     if not isinstance(values, dict):
         raise UsageError(f"{path} is not a run config")
     version = values.get("format_version")
@@ -124,6 +129,7 @@ def check_resume_config(run_dir: str | os.PathLike, meta: dict, config) -> None:
     then = meta.get("config")
     if then is None:
         then = {"seeds": meta["seeds"]} if "seeds" in meta else {}
+    check_complete_config(run_dir, then)
     for name, value in then.items():
         if name in RESUMABLE_EDITS or name not in now or now[name] == value:
             continue
@@ -131,6 +137,29 @@ def check_resume_config(run_dir: str | os.PathLike, meta: dict, config) -> None:
             f"{Path(run_dir) / CONFIG_FILE} field {name!r} is {now[name]!r} but the run's "
             f"checkpoint was written with {value!r}; put it back to resume, or start a new run"
         )
+
+
+def check_complete_config(run_dir: str | os.PathLike, recorded: dict | None = None) -> None:
+    """A one-line UsageError naming the first config field that the run's checkpoint recorded
+    (`recorded`, its meta.json `config`; None: a run without a checkpoint, written by this adarl,
+    so every field of its algorithm) but that its config.yaml lacks: a resume fills in no
+    default (a deleted `total_steps:` line would train to the default budget). Fields a run
+    written before they existed lacks are not in its checkpoint's record, and keep their
+    defaults."""
+    from adarl.algos import registry
+
+    values = load_config(run_dir)
+    algo = values.get("algo", registry.LEGACY_ALGO)
+    names = registry.field_names(algo) - {"algo"}
+    known = recorded is not None
+    path = Path(run_dir) / CONFIG_FILE
+    for name, value in (recorded if known else dict.fromkeys(sorted(names))).items():
+        if name not in values and name in names:
+            line = f"`{name}: {json.dumps(value)}`" if known else f"its {name}: line"
+            raise UsageError(
+                f"{path} has no field {name!r} (the run was written with it; a resume fills in "
+                f"no default): put back {line} and run adarl train --resume {run_dir}"
+            )
 
 
 # ---------------------------------------------------------------------------- starting a run
@@ -145,7 +174,54 @@ def check_new_run_dir(run_dir: str | os.PathLike) -> None:
             f"run folder {run_dir} is being written by another adarl process (pid {holder}); "
             "choose another --out"
         )
+    if run_dir.is_dir() and any(p.name != LOCK_FILE for p in run_dir.iterdir()):
+        if not (run_dir / CONFIG_FILE).exists():  # --resume cannot take it either
+            raise UsageError(
+                f"run folder {run_dir} already exists and is not empty but holds no run (no "
+                f"{CONFIG_FILE}): "
+                f"choose another --out, or remove it (rm -r {run_dir}) and run this again"
+            )
+        if interrupted_fork(run_dir):
+            raise UsageError(
+                f"run folder {run_dir} holds a fork interrupted while being made (no "
+                f"checkpoint; --resume cannot take it): {remake_fork(run_dir)}"
+            )
     refuse_non_empty(run_dir)
+
+
+def interrupted_fork(run_dir: Path) -> bool:
+    """A fork killed while being made: config.yaml with a `fork` record, no checkpoint (its
+    first checkpoint is written last)."""
+    from adarl.runs.checkpoints import checkpoint_dirs
+
+    try:
+        fork = load_config(run_dir).get("fork")
+    except UsageError:
+        return False
+    return bool(fork) and not checkpoint_dirs(run_dir)
+
+
+def remake_fork(run_dir: Path) -> str:
+    """How to make an interrupted fork again: remove it, then its recorded `adarl train --fork`
+    command (or the one its `fork` record describes)."""
+    values = load_config(run_dir)
+    command = str(values.get("command") or "")
+    if not (command.startswith("adarl train ") and "--fork" in command):
+        fork = values.get("fork") or {}
+        words = ["adarl", "train", "--fork", str(fork.get("from")), "--at", str(fork.get("step"))]
+        for name, change in (fork.get("changed") or {}).items():
+            if name != "algo" and isinstance(change, dict):
+                words += [f"--{name.replace('_', '-')}", _flag_text(change.get("to"))]
+        command = shlex.join([*words, "--out", str(run_dir)])
+    return f"remove it and fork again: rm -r {shlex.quote(str(run_dir))} && {command}"
+
+
+def _flag_text(value) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, list | tuple):
+        return ",".join(map(str, value))
+    return str(value)
 
 
 def check_resume_dir(run_dir: str | os.PathLike) -> None:
@@ -186,9 +262,11 @@ def newest_to_resume(run_dir: Path, config):
         run_dir, check=lambda path, arrays, meta: check_resume_config(run_dir, meta, config)
     )
     if loaded is None:
+        check_complete_config(run_dir)
         if load_config(run_dir).get("fork"):  # a fork's first checkpoint is written last
             raise UsageError(
-                f"fork {run_dir} was interrupted while being made (no checkpoint); fork again"
+                f"fork {run_dir} was interrupted while being made (no checkpoint): "
+                f"{remake_fork(run_dir)}"
             )
         refuse_lost_checkpoints(run_dir, config)
         return None, None, None
@@ -230,12 +308,13 @@ def finish(run_dir: Path, step: int) -> None:
 
 
 def done_step(run_dir: str | os.PathLike) -> int | None:
-    """The final step recorded in DONE (-1 if unreadable), or None while the run is unfinished."""
+    """The final step recorded in DONE (-1 if it holds no step: not a finite number, not UTF-8
+    text, too large), or None while the run is unfinished."""
     done = Path(run_dir) / DONE_FILE
-    if not done.is_file():
+    if not os.path.lexists(done):
         return None
-    text = done.read_text(encoding="utf-8").strip()
     try:
+        text = read_text(done, max_bytes=4096).strip()
         return int(float(text.split()[0])) if text else -1
-    except ValueError:
+    except (UnreadableFile, ValueError, OverflowError):  # OverflowError: "inf"
         return -1

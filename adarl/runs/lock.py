@@ -14,11 +14,11 @@ from adarl.runs.layout import LOCK_FILE
 def lock_holder(run_dir: str | os.PathLike) -> str | None:
     """The PID (as written, or "?") of the process holding `run_dir`'s lock, or None."""
     try:
-        with open(Path(run_dir) / LOCK_FILE, encoding="utf-8") as handle:
+        with open(Path(run_dir) / LOCK_FILE, "rb") as handle:
             try:
                 fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
-            except BlockingIOError:
-                return handle.read().strip() or "?"
+            except BlockingIOError:  # the pid, as written; any bytes shown, never many
+                return handle.read(64).decode("utf-8", errors="replace").strip() or "?"
             return None  # closing the file drops the shared lock just taken
     except OSError:
         return None

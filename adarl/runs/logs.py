@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from adarl.errors import UsageError
-from adarl.files import fs_errors
+from adarl.files import fs_errors, read_text
 from adarl.runs import tracking
 
 # episodes.csv: then one column p_<name> per physical parameter of the task
@@ -22,6 +22,8 @@ EVAL_COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length"]
 
 # the columns of run logs and evaluation tables that hold text; every other column holds numbers
 TEXT_COLUMNS = frozenset({"dynamics", "layer", "decision"})
+#: the largest run log `read_csv` reads (a 3M-step run's episodes.csv is a few MB)
+MAX_CSV_BYTES = 1 << 30
 
 
 def episode_columns(param_names) -> list[str]:
@@ -57,8 +59,14 @@ class CsvLog:
         self.columns = list(columns)
         new = not self.path.exists() or self.path.stat().st_size == 0
         if not new:  # appending (a resumed run): keep the file's own column order
-            with open(self.path, encoding="utf-8", newline="") as f:
-                existing = next(csv.reader(f), [])
+            with fs_errors(self.path, "read"), open(self.path, "rb") as f:
+                head = f.readline(1 << 16)
+            try:
+                existing = next(csv.reader([head.decode("utf-8")]), [])
+            except UnicodeDecodeError:
+                raise UsageError(
+                    f"{self.path} has a header that is not UTF-8 text; expected {self.columns}"
+                ) from None
             if sorted(existing) != sorted(self.columns):
                 raise UsageError(f"{self.path} has columns {existing}, expected {self.columns}")
             self.columns = existing
@@ -89,12 +97,31 @@ class CsvLog:
             pass
 
     @staticmethod
-    def truncate(path: str | os.PathLike, offset: int) -> None:
-        """Cut `path` back to `offset` bytes (the size recorded in a checkpoint)."""
+    def truncate(path: str | os.PathLike, offset: int, warn=None) -> None:
+        """Cut `path` back to `offset` bytes (the size recorded in a checkpoint).
+
+        A log shorter than `offset` lost its tail after the checkpoint was written (a disk or a
+        hand that cut it): its rows are gone and cannot be made again, so the resume says so in
+        one line (`warn`, default stderr) and keeps the rows that are there, cut back to the
+        last complete line (new rows must not continue a half one). A missing log is made anew
+        by `CsvLog` (with its header)."""
         path = Path(path)
-        if path.exists() and path.stat().st_size > offset:
+        size = path.stat().st_size if path.exists() else None
+        if size is not None and size > offset:
             with fs_errors(path), open(path, "r+b") as f:
                 f.truncate(offset)
+        elif offset > 0 and (size is None or size < offset):
+            warn = warn or (lambda line: print(line, file=sys.stderr, flush=True))
+            kept = 0
+            if size:
+                with fs_errors(path), open(path, "r+b") as f:
+                    kept = f.read().rfind(b"\n") + 1
+                    f.truncate(kept)
+            what = "is missing" if size is None else f"holds {size} bytes"
+            warn(
+                f"adarl: warning: {path} {what} but the checkpoint recorded {offset}: its last "
+                f"rows were lost; resuming keeps the {kept} bytes there and logs on"
+            )
 
 
 def _fmt(v):
@@ -108,10 +135,7 @@ def _fmt(v):
 def read_csv(path: str | os.PathLike) -> list[dict]:
     """Read a run CSV, ignoring a trailing half-written line; one-line UsageError if it is not
     UTF-8 text."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise UsageError(f"{path} is not UTF-8 text (byte {exc.start}); is it a run log?") from None
+    text = read_text(path, max_bytes=MAX_CSV_BYTES)
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
     return list(csv.DictReader(io.StringIO(text)))

@@ -8,7 +8,6 @@ run was resumed with other code (`code_changes`) (docs/run-format.md).
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import subprocess
@@ -17,8 +16,8 @@ from importlib import metadata
 from pathlib import Path
 
 from adarl import __version__
-from adarl.errors import UsageError, reason
-from adarl.files import atomic_write_json
+from adarl.errors import UsageError
+from adarl.files import UnreadableFile, atomic_write_json, read_json
 from adarl.runs.layout import ENVIRONMENT_FILE
 
 FORMAT_VERSION = 1
@@ -111,9 +110,9 @@ def read_environment(run_dir: str | os.PathLike) -> dict | None:
     if not path.is_file():
         return None
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:  # ValueError: bad JSON or not UTF-8
-        raise UsageError(f"{path} is unreadable ({reason(exc)}); delete it or restore it") from None
+        record = read_json(path)
+    except UnreadableFile as exc:
+        raise UsageError(f"{exc}; delete it or restore it") from None
     if not isinstance(record, dict):
         raise UsageError(f"{path} is not a JSON object; delete it or restore it")
     for key in RECORD_OBJECTS:

@@ -25,7 +25,6 @@ from __future__ import annotations
 import csv
 import heapq
 import io
-import json
 import math
 import os
 import statistics
@@ -33,6 +32,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from adarl.files import read_json
 from adarl.runs.layout import DONE_FILE, TRAIN_CSV
 from adarl.sweeps.spec import Sweep, Unit
 
@@ -356,7 +356,7 @@ def unit_critical_paths(sweep: Sweep, out: Path) -> dict[str, float]:
 
 def measurements_of(sweep_dir: Path, source: str) -> list[Measurement]:
     """Measurements of every unit of a sweep folder with a train.csv (its manifest lists them)."""
-    data = json.loads((Path(sweep_dir) / "manifest.json").read_text(encoding="utf-8"))
+    data = read_json(Path(sweep_dir) / "manifest.json")
     found = []
     for uid, record in sorted(data["units"].items()):
         m = measure_run(Path(sweep_dir) / uid, record, source)

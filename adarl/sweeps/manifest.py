@@ -12,12 +12,11 @@ the manifest says, and one that is not is queued again when the sweep is re-run.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
 from adarl.errors import UsageError
-from adarl.files import atomic_write_json
+from adarl.files import UnreadableFile, atomic_write_json, read_json
 from adarl.sweeps.spec import Sweep
 
 FILE = "manifest.json"
@@ -31,12 +30,9 @@ def read(out: Path) -> dict | None:
     if not path.exists():
         return None
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise UsageError(
-            f"{path} is unreadable ({type(exc).__name__}); move it away to start "
-            f"the sweep's bookkeeping afresh"
-        ) from None
+        data = read_json(path)
+    except UnreadableFile as exc:
+        raise UsageError(f"{exc}; move it away to start the sweep's bookkeeping afresh") from None
     if not isinstance(data, dict) or data.get("format_version") != FORMAT_VERSION:
         raise UsageError(f"{path} is not a sweep manifest of format {FORMAT_VERSION}")
     units = data.get("units", {})

@@ -39,6 +39,7 @@ from pathlib import Path
 
 from adarl.errors import UsageError
 from adarl.evaluation.summary import duration
+from adarl.files import read_json
 from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.backends import thread_env
@@ -424,7 +425,7 @@ def last_train_row(path: Path) -> tuple[int, float] | None:
     """(step, steps_per_s) of the last complete row of a run's train.csv, if it has one."""
     try:
         with open(path, "rb") as f:
-            header = f.readline().decode().strip().split(",")
+            header = f.readline(1 << 16).decode(errors="replace").strip().split(",")
             f.seek(0, os.SEEK_END)
             size = f.tell()
             f.seek(max(0, size - 4096))
@@ -452,8 +453,8 @@ def exit_text(returncode: int | None) -> str:
 
 def _read_json(path: Path):
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        return read_json(path)
+    except (OSError, ValueError):  # UnreadableFile is a ValueError
         return None
 
 

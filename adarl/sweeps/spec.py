@@ -13,9 +13,8 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
-
 from adarl.errors import UsageError, check_choice
+from adarl.files import read_yaml
 
 PRESET_DIR = Path(__file__).parent / "presets"
 
@@ -113,19 +112,7 @@ def resolve(spec: str) -> Path:
 def load(spec: str) -> Sweep:
     """Read, check and expand a sweep file or preset name; a one-line UsageError on bad input."""
     path = resolve(spec)
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or type(exc).__name__
-        raise UsageError(f"{path} is not valid YAML{where}: {problem}") from None
-    except OSError as exc:
-        raise UsageError(f"cannot read {path}: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise UsageError(
-            f"{path} is not UTF-8 text (byte {exc.start}); a sweep file is YAML"
-        ) from None
+    doc = read_yaml(path)
     source = spec if path.parent == PRESET_DIR and not Path(spec).is_file() else str(path)
     return parse(doc, source=source, default_name=path.stem)
 

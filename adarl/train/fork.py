@@ -93,6 +93,10 @@ def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) ->
             f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(SAC_FAMILY)})"
         )
     config, changed = forked_config(algo, before, changes)
+    from adarl.envs import parse_dynamics
+
+    for label in config.eval_dynamics:  # checked now: the learner would find it after the write
+        parse_dynamics(label, config.task)
     step = fork_step(before, at)
     points = fork_points(parent)
     if step not in points:
@@ -143,6 +147,26 @@ def fork_points(run_dir: Path) -> dict[int, Path]:
         {checkpoint_step(p): p for p in checkpoints.checkpoint_dirs(run_dir, PRE_TRUNCATION_DIR)}
     )
     return dict(sorted(points.items()))
+
+
+def _points_with_logs(run_dir: Path) -> dict[int, Path]:
+    """The fork points whose checkpoints' CSV offsets the parent's logs still reach."""
+    sizes = {}
+    fit = {}
+    for step, path in fork_points(run_dir).items():
+        try:
+            meta = checkpoints.read_meta(path)
+            checkpoints.check_csv_offsets(path, meta)
+            offsets = checkpoints.csv_offsets(meta)
+        except (UsageError, KeyError, AttributeError):
+            continue
+        for name in offsets:
+            if name not in sizes:
+                log = run_dir / name
+                sizes[name] = log.stat().st_size if log.is_file() else 0
+        if all(sizes[name] >= offset for name, offset in offsets.items()):
+            fit[step] = path
+    return fit
 
 
 def describe_points(points: Mapping[int, Path]) -> str:
@@ -219,25 +243,34 @@ def write(fork: Fork, out: Path, command: str) -> None:
         raise UsageError(f"checkpoint {fork.checkpoint} is of step {meta['step']}, not {fork.step}")
     _, parent_config = folder.config_from_run(fork.parent)
     folder.check_resume_config(fork.parent, meta, parent_config)  # the checkpoint is of this run
+    logs = {}  # read and checked whole before the first write (a retry must find `out` empty)
+    for name, offset in checkpoints.csv_offsets(meta).items():
+        source = fork.parent / name
+        data = source.read_bytes()[:offset] if source.exists() else b""
+        if len(data) < offset:
+            fit = _points_with_logs(fork.parent)
+            instead = (
+                f"fork at a step whose rows are all there: {describe_points(fit)}"
+                if fit
+                else f"restore {source} (no fork point has all its rows)"
+            )
+            raise UsageError(
+                f"{source} is shorter ({len(data)} bytes) than its checkpoint at step "
+                f"{fork.step} says ({offset}); {instead}"
+            )
+        logs[name] = data
+    from adarl.runs.provenance import read_environment
+
+    parent_env = {"parent_environment": read_environment(fork.parent)}
     with RunLock(out) as lock:
         lock.acquire(new=True)
-        for name, offset in checkpoints.csv_offsets(meta).items():
-            source = fork.parent / name
-            data = source.read_bytes()[:offset] if source.exists() else b""
-            if len(data) < offset:
-                raise UsageError(
-                    f"{source} is shorter ({len(data)} bytes) than its checkpoint at step "
-                    f"{fork.step} says ({offset})"
-                )
+        for name, data in logs.items():
             atomic_write_bytes(out / name, data)
         pre = fork.record["checkpoint"] == PRE_TRUNCATION
         for spectrum in sorted((fork.parent / SPECTRA_DIR).glob(f"{STEP_PREFIX}*.npz")):
             step = int(spectrum.stem.split("_")[1])
             if step < fork.step or (step == fork.step and not pre):
                 atomic_write_bytes(out / SPECTRA_DIR / spectrum.name, spectrum.read_bytes())
-        from adarl.runs.provenance import read_environment
-
-        parent_env = {"parent_environment": read_environment(fork.parent)}
         write_environment(out, {"fork": {**fork.record, **parent_env}})
         folder.write_config(out, fork.config, fork.algo, command, fork=fork.record)
         files = {

@@ -326,8 +326,8 @@ class SACLearner:
             return {}
         path = run_dir / layout.TRUNCATIONS_CSV
         if resuming and path.exists() and path.stat().st_size:
-            with open(path, encoding="utf-8") as f:
-                header = f.readline().strip().split(",")
+            with open(path, encoding="utf-8", errors="replace") as f:  # CsvLog names a bad one
+                header = f.readline(1 << 16).strip().split(",")
             if sorted(header) == sorted(LEGACY_TRUNCATION_COLUMNS):
                 return {layout.TRUNCATIONS_CSV: LEGACY_TRUNCATION_COLUMNS}
         return {layout.TRUNCATIONS_CSV: TRUNCATION_COLUMNS}

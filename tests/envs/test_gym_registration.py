@@ -163,3 +163,46 @@ def test_sb3_script_from_docs(tmp_path, monkeypatch):
     finally:
         torch.set_num_threads(threads)
     assert (tmp_path / "sac-adarl-hopper-paper.zip").is_file()
+
+
+# ----------------------------------------------------------------------------- issue 38, class 3
+@pytest.mark.parametrize("value", [True, False, np.bool_(True)])
+def test_a_bool_is_not_a_length(value):
+    env = gymnasium.make("adarl/Hopper-v0", dynamics="nominal")
+    env.reset(seed=0)
+    before = env.unwrapped.get_params()
+    for call in (
+        lambda: env.reset(options={"torso_length": value}),
+        lambda: env.unwrapped.set_params(torso_length=value),
+    ):
+        with pytest.raises(UsageError, match=f"bad value {value!r} for torso_length; allowed"):
+            call()
+    assert env.unwrapped.get_params() == before
+    with pytest.raises(UsageError, match="bad value True for foot_length"):
+        gymnasium.make("adarl/Hopper-v0", foot_length=True)
+
+
+def test_make_refuses_a_task_keyword_naming_another_task():
+    with pytest.raises(UsageError) as err:
+        gymnasium.make("adarl/Hopper-v0", task="walker2d")
+    message = str(err.value)
+    assert "takes no task='walker2d'" in message and '"adarl/Walker2d-v0"' in message, message
+    assert "\n" not in message
+    with pytest.raises(UsageError, match="takes no task='cheetah'.*adarl/Humanoid-v0"):
+        gymnasium.make("adarl/Hopper-v0", task="cheetah")
+    # the id's own task is no change: accepted, and the spec is as registered
+    env = gymnasium.make("adarl/Hopper-v0", task="hopper")
+    assert env.unwrapped.task.name == "hopper" and env.spec.kwargs["task"] == "hopper"
+
+
+def test_the_dynamics_dict_reset_returns_is_the_callers():
+    env = gymnasium.make("adarl/Hopper-v0", dynamics="paper")
+    _, first = env.reset(seed=0)
+    expected = parse_dynamics("paper", "hopper").params_for_episode(0)
+    assert first["dynamics"] == expected
+    first["dynamics"]["torso_length"] = 123.0
+    first["dynamics"]["made_up"] = 1.0
+    assert env.unwrapped.get_params() == expected  # the env's own values are untouched
+    _, second = env.reset()
+    assert second["dynamics"] == parse_dynamics("paper", "hopper").params_for_episode(1)
+    assert second["dynamics"] is not first["dynamics"]

@@ -54,3 +54,14 @@ def test_last_k_scores_of_a_run_use_its_nominal_evaluations(tmp_path):
     expected = log.groupby(["seed", "step"])["return"].mean().groupby("seed").tail(5)
     assert scores["score"].tolist() == pytest.approx(expected.groupby("seed").mean().tolist())
     assert note == "eval.csv, mean of the last 5 evaluation(s) (steps 3333–10000, nominal)"
+
+
+def test_last_k_is_the_latest_evaluations_not_the_best():
+    # issue 38: returns that dip late; the rows out of step order, as a resumed log never is
+    means = {1: 10.0, 2: 50.0, 3: 40.0, 4: 5.0}
+    rows = [(step, 0, e, means[step] + (2 if e else -2)) for step in (3, 1, 4, 2) for e in (0, 1)]
+    log = pd.DataFrame(rows, columns=["step", "seed", "episode", "return"])
+    got = collect.last_evaluations(log, 2).set_index("seed").loc[0]
+    assert got["score"] == (40.0 + 5.0) / 2  # steps 3 and 4; the best two would give 45
+    assert (got["first_step"], got["last_step"], got["evaluations"]) == (3, 4, 2)
+    assert collect.last_evaluations(log, 1).set_index("seed").loc[0, "score"] == 5.0

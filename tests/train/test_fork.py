@@ -173,6 +173,28 @@ def test_the_forked_control_is_the_control_trained_from_scratch(parent, tmp_path
     lr = [(r["step"], r["seed"], r["lr"]) for r in rows(forked, "train.csv")]
     assert lr == [(r["step"], r["seed"], r["lr"]) for r in rows(parent, "train.csv")]
     assert {r["rank_actor_1"] for r in rows(forked, "train.csv")} == {"64"}
+    # issue 38: the control from scratch keeps AdaRL's pre-truncation fork points (550, 650, 750)
+    pre = [p.name for p in checkpoints.checkpoint_dirs(scratch, PRE_TRUNCATION_DIR)]
+    assert pre == [f"step_{s:012d}" for s in (550, 650, 750)]
+    assert pre == [p.name for p in checkpoints.checkpoint_dirs(parent, PRE_TRUNCATION_DIR)]
+
+
+def test_a_fork_ending_at_its_pre_truncation_step_makes_that_one_truncation(parent, tmp_path):
+    """`--at 650 --total-steps 650` from the checkpoint kept before the truncation at 650: the
+    child makes that truncation (as its parent did, from the same state) and ends at 650."""
+    child = tmp_path / "child"
+    planned = fork.prepare(parent, 650, {"total_steps": "650"})
+    assert planned.record["checkpoint"] == "pre_truncation" and planned.config.total_steps == 650
+    fork.write(planned, child, "")
+    sac_learner.train(planned.config, child, resume=True, progress=False)
+    cuts = rows(child, "truncations.csv")
+    assert sorted({int(r["step"]) for r in cuts}) == [550, 650]  # 550 inherited, 650 made
+    made = [r for r in cuts if r["step"] == "650"]
+    assert made == [r for r in rows(parent, "truncations.csv") if r["step"] == "650"]
+    assert len(made) == 2 * 3  # one per seed and bottleneck (actor, two critics)
+    assert (child / "DONE").read_text().split()[0] == "650"
+    assert [p.name for p in checkpoints.checkpoint_dirs(child)][-1] == "step_000000000650"
+    assert max(int(r["step"]) for r in rows(child, "train.csv")) <= 650
 
 
 def test_the_control_reparameterises_at_the_old_rank():
@@ -246,7 +268,7 @@ def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkey
     assert (tmp_path / "child" / "config.yaml").exists() and not checkpoints.checkpoint_dirs(
         tmp_path / "child"
     )
-    with pytest.raises(UsageError, match="was interrupted while being made .*; fork again"):
+    with pytest.raises(UsageError, match="was interrupted while being made .*: remove it and fork"):
         sac_learner.train(planned.config, tmp_path / "child", resume=True, progress=False)
 
 

@@ -54,7 +54,7 @@ from adarl.evaluation.report.scores import (
 )
 from adarl.evaluation.report.statistics import statistics_sections
 from adarl.evaluation.runs import Run, find_runs, sort_methods, sort_tasks
-from adarl.files import process_temp_dir, remove_orphans
+from adarl.files import process_temp_dir, read_bytes, remove_orphans
 from adarl.runs.checkpoints import checkpoint_dirs, select_checkpoint
 from adarl.train.guards import check_memory
 
@@ -65,6 +65,8 @@ def build_report(
 ) -> Path:
     """Check the runs under `paths`, write the report to `out` atomically; returns `out`."""
     out = Path(out)
+    if out.is_symlink():  # the report goes where the link points; the link stays
+        out = Path(os.path.realpath(out))
     check_output(out)
     if options.bootstrap_reps < 1:
         raise UsageError(f"--bootstrap-reps must be ≥ 1, got {options.bootstrap_reps}")
@@ -100,9 +102,18 @@ def scores_file(path: str | os.PathLike) -> Path | None:
     if path.is_file() and path.name == SCORES_CSV:
         return path
     index, found = path / INDEX, path / "tables" / SCORES_CSV
-    if index.is_file() and found.is_file() and MARKER in index.read_text(encoding="utf-8"):
+    if index.is_file() and found.is_file() and MARKER in _head(index):
         return found
     return None
+
+
+def _head(index: Path) -> str:
+    """The start of a report's index.md (where its marker is), any bytes; "" if unreadable or
+    not a regular file."""
+    try:
+        return read_bytes(index, 4096, head=True).decode("utf-8", errors="replace")
+    except UsageError:
+        return ""
 
 
 def _build_from_scores(paths, score_files, out: Path, options: ReportOptions) -> Path:
@@ -183,7 +194,7 @@ def check_output(out: Path) -> None:
         raise UsageError(f"--out {out} is a file; give a folder for the report")
     if out.is_dir() and any(out.iterdir()):
         index = out / INDEX
-        if not (index.is_file() and MARKER in index.read_text(encoding="utf-8", errors="replace")):
+        if not (index.is_file() and MARKER in _head(index)):
             raise UsageError(
                 f"--out {out} is a non-empty folder that is not an adarl report; "
                 "choose a new or empty folder"
