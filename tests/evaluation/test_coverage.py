@@ -12,7 +12,6 @@ with the odd large loss; there the exact permutation intervals (`two_sample_perm
 
 Run `python tests/evaluation/test_coverage.py` to print the coverage tables."""
 
-
 import numpy as np
 import pytest
 
