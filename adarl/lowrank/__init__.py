@@ -137,21 +137,23 @@ def apply_factorised(layer: dict, x: jnp.ndarray) -> jnp.ndarray:
 
 
 def is_factorised(node: Any) -> bool:
-    """True for a dict holding 2-D `w1` and `w2` (a factorised layer)."""
+    """True for a dict holding `w1` and `w2` of 2 dimensions (a factorised layer) or 3 (a stack
+    of them on axis 0, e.g. twin critics under `vmap` or Flax's `nn.vmap`)."""
     return (
         isinstance(node, dict)
         and "w1" in node
         and "w2" in node
-        and getattr(node["w1"], "ndim", 0) == 2
-        and getattr(node["w2"], "ndim", 0) == 2
+        and getattr(node["w1"], "ndim", 0) in (2, 3)
+        and getattr(node["w2"], "ndim", 0) == getattr(node["w1"], "ndim", 0)
     )
 
 
 def layer_rank(layer: dict) -> jax.Array:
-    """The rank of a factorised layer: its mask's sum, or its width when compact."""
+    """The rank of a factorised layer (one per layer of a stack): its mask's sum, or its width
+    when compact."""
     if "mask" in layer:
-        return layer["mask"].sum().astype(jnp.int32)
-    return jnp.asarray(layer["w1"].shape[1], jnp.int32)
+        return layer["mask"].sum(axis=-1).astype(jnp.int32)
+    return jnp.full(layer["w1"].shape[:-2], layer["w1"].shape[-1], jnp.int32)
 
 
 def factorised_layers(params: Any) -> dict[str, dict]:
@@ -370,16 +372,17 @@ def truncate(
     reference = None if output_fn is None else output_fn(params)
     new_layers, records = {}, {}
     for path, layer in layers.items():
-        masked = "mask" in layer
-        mask = layer["mask"] if masked else jnp.ones(layer["w1"].shape[1], layer["w1"].dtype)
+        masked, batched = "mask" in layer, layer["w1"].ndim == 3
+        shape = layer["w1"].shape[:-2] + layer["w1"].shape[-1:]
+        mask = layer["mask"] if masked else jnp.ones(shape, layer["w1"].dtype)
         error_fn = None
         if output_fn is not None:
 
-            def error_fn(w1, w2, m, path=path, layer=layer, masked=masked):
+            def error_fn(w1, w2, m, path=path, layer=layer, masked=masked, batched=batched):
                 candidate = dict(layer, w1=w1, w2=w2, **({"mask": m} if masked else {}))
-                return relative_error(
-                    output_fn(_replace_layers(params, {path: candidate})), reference
-                )
+                out = output_fn(_replace_layers(params, {path: candidate}))
+                error = relative_error(out, reference)  # a stack is cut and measured at once
+                return jnp.broadcast_to(error, m.shape[:1]) if batched else error
 
         w1, w2, m, record = cut_layer(
             layer["w1"],
@@ -390,12 +393,13 @@ def truncate(
             retain_tolerance=retain_tolerance,
             error_fn=error_fn,
             apply_cuts=apply_cuts,
+            batched=batched,
         )
         if masked:
             new_layers[path] = dict(layer, w1=w1, w2=w2, mask=m)
-        else:
-            r = int(record.applied)
-            new_layers[path] = dict(layer, w1=w1[:, :r], w2=w2[:r, :])
+        else:  # a compact stack is cut to its largest rank (components past each one's are zero)
+            r = int(jnp.max(record.applied))
+            new_layers[path] = dict(layer, w1=w1[..., :r], w2=w2[..., :r, :])
         records[path] = record
     new_params = _replace_layers(params, new_layers)
     fitted = fit_opt_state(opt_state, params, new_params, optimizer=optimizer, reset=reset)
@@ -408,9 +412,9 @@ def to_compact(params: Any) -> Any:
     new = {}
     for path, layer in factorised_layers(params).items():
         if "mask" in layer:
-            r = int(layer["mask"].sum())
+            r = int(layer["mask"].sum(axis=-1).max())
             rest = {k: v for k, v in layer.items() if k != "mask"}
-            new[path] = dict(rest, w1=layer["w1"][:, :r], w2=layer["w2"][:r, :])
+            new[path] = dict(rest, w1=layer["w1"][..., :r], w2=layer["w2"][..., :r, :])
     return _replace_layers(params, new)
 
 

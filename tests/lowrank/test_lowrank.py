@@ -188,3 +188,17 @@ def test_flax_layer_is_cut_in_place():
     assert jax.tree_util.tree_map(jnp.shape, new) == jax.tree_util.tree_map(jnp.shape, params)
     assert int(next(iter(rec.values())).applied) < 6
     net.apply(new, x)
+
+
+def test_a_stack_is_cut_layer_by_layer():
+    """Twin critics stacked on axis 0 (vmap, Flax's nn.vmap): each is cut as if alone."""
+    rng = np.random.default_rng(9)
+    a, b = layer_from(rng, 7, 5, 6, rank=6), layer_from(rng, 7, 5, 6, rank=4)
+    stack = jax.tree_util.tree_map(lambda x, y: jnp.stack([x, y]), a, b)
+    new, _, rec = lowrank.truncate({"q": stack}, rule="energy", beta=0.9)
+    for k, one in enumerate((a, b)):
+        alone, _, rec_one = lowrank.truncate({"q": one}, rule="energy", beta=0.9)
+        assert int(rec["['q']"].applied[k]) == int(rec_one["['q']"].applied)
+        for name in ("w1", "w2", "mask"):
+            np.testing.assert_allclose(new["q"][name][k], alone["q"][name], rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(lowrank.layer_rank(new["q"]), rec["['q']"].applied)
