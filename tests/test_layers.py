@@ -14,6 +14,7 @@ PACKAGE = Path(adarl.__file__).parent
 LAYERS = [
     {"__init__", "__version__", "errors", "runtime", "files", "policy", "cluster"},
     {"envs"},
+    {"lowrank"},  # the public rank-adaptation module: JAX and optax only, imports no adarl module
     {"nets"},
     {"algos"},
     {"runs"},

@@ -468,30 +468,30 @@ def truncate(spec: Spec, state: dict):
 
 
 def _truncate_bottleneck(c: SACConfig, p: dict, mask, output_with, reference, networks=0):
-    """One bottleneck's cut (`truncate`): the SVD of W1·W2 (within `mask`), the rule's r̂,
-    the candidate r_c = max(1, min(r_old, r̂)), the retain clause on the relative change of
-    `output_with(layer, mask)` against `reference`, and W1 = U_r√Σ_r, W2 = √Σ_r V_rᵀ at the
-    chosen rank. `networks` > 0: `p` and `mask` stack that many networks' bottlenecks (the
-    critics), each cut on its own. Returns the new layer, its mask and (spectrum, r̂, new rank,
-    r_c, error), per network when stacked."""
+    """One bottleneck's cut (`truncate`), by `adarl.lowrank.cut_layer`: the SVD of W1·W2 (within
+    `mask`), the rule's r̂, the candidate r_c = max(1, min(r_old, r̂)), the retain clause on the
+    relative change of `output_with(layer, mask)` against `reference`, and W1 = U_r√Σ_r,
+    W2 = √Σ_r V_rᵀ at the chosen rank. `networks` > 0: `p` and `mask` stack that many networks'
+    bottlenecks (the critics), each cut on its own. Returns the new layer, its mask and
+    (spectrum, r̂, new rank, r_c, error), per network when stacked."""
     each = jax.vmap if networks else (lambda f: f)
-    old = mask.sum(axis=-1).astype(jnp.int32)
-    u, s, vt = each(rank.spectrum)(p["w1"], p["w2"], mask)
-    proposed = each(lambda x: rank.select_rank(x, c.beta, c.rank_rule))(s)
-    candidate = rank.next_rank(old, proposed)
-    reparameterise = each(functools.partial(rank.reparameterise, dtype=p["w1"].dtype))
-    w1, w2, m = reparameterise(u, s, vt, candidate)
-    error = each(rank.relative_error)(output_with(dict(p, w1=w1, w2=w2), m), reference)
-    new = rank.retain_or_cut(old, candidate, error, c.retain_tolerance)
-    if not c.apply_cuts:  # the control: the proposal is logged, the old rank kept
-        new = old
-    if c.retain_tolerance is not None or not c.apply_cuts:  # else the candidate's, as before
-        w1, w2, m = reparameterise(u, s, vt, new)
-    return (
-        dict(p, w1=w1, w2=w2),
-        m,
-        (s, proposed, m.sum(axis=-1).astype(jnp.int32), candidate, error),
+
+    def error_fn(w1, w2, m):
+        return each(rank.relative_error)(output_with(dict(p, w1=w1, w2=w2), m), reference)
+
+    w1, w2, m, record = rank.cut_layer(
+        p["w1"],
+        p["w2"],
+        mask,
+        rule=c.rank_rule,
+        beta=c.beta,
+        retain_tolerance=c.retain_tolerance,
+        error_fn=error_fn,
+        apply_cuts=c.apply_cuts,
+        batched=bool(networks),
     )
+    summary = (record.spectrum, record.proposed, record.applied, record.candidate, record.error)
+    return dict(p, w1=w1, w2=w2), m, summary
 
 
 def bottleneck_widths(spec: Spec) -> dict[str, int]:
