@@ -1,9 +1,9 @@
 """The device Hopper task (`adarl.device.hopper`, MJX) against Gymnasium's Hopper-v5 on MuJoCo C.
 
-Float64, same initial state and actions: observation, reward and termination agree to 1e-7 over
-300 env steps (measured worst 2.2e-8; issue 36 asks 1e-8: open), the host and device resynchronised at each termination (as training resets
-there). Skipped where `mujoco.mjx` is not installed (the project venv; see docs/benchmarks.md,
-"Accelerator groundwork", for the scratch venv that runs it).
+Float64, same initial state and actions: observation, reward and termination agree to 1e-7 over 300
+env steps (measured worst 2.2e-8; issue 36 asks 1e-8: open), the host and device resynchronised at
+each termination (as training resets there). Skipped where `mujoco.mjx` is not installed (the
+project venv; see docs/benchmarks.md, "Accelerator groundwork", for the scratch venv that runs it).
 """
 
 import numpy as np
