@@ -1,0 +1,36 @@
+"""Device tasks: Gymnasium v5 MuJoCo tasks as pure JAX reset/step functions on MJX.
+
+    from adarl.device import hopper
+    task = hopper.HopperTask()                      # Gymnasium's hopper.xml, float32
+    state = task.reset(key)                         # or task.reset(key, fields) per episode
+    state, obs, reward, terminated, truncated = task.step(state, action)
+
+Physics is MJX's pure-JAX implementation (`mujoco.mjx`, ``impl="jax"``), chosen over MuJoCo Warp
+because the Warp stack cannot reach the accelerator machine (warp-lang's wheel is 149 MB, the
+carried tree 64 MiB) and MJX matches MuJoCo C to 1e-13 in float64 (docs/benchmarks.md,
+"Accelerator groundwork"). The backend is imported lazily: ``import adarl.device`` works without
+it, and :func:`available` says whether it is installed.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+__all__ = ["available", "missing_reason"]
+
+
+def available() -> bool:
+    """Whether the device backend (``mujoco.mjx``) can be imported."""
+    return missing_reason() is None
+
+
+def missing_reason() -> str | None:
+    """Why the device backend cannot be imported, or None when it can."""
+    try:
+        if importlib.util.find_spec("mujoco") is None:
+            return "mujoco is not installed"
+        if importlib.util.find_spec("mujoco.mjx") is None:
+            return "mujoco.mjx is not installed (pip install mujoco-mjx; mujoco 4.0.0 ships none)"
+    except (ImportError, ValueError) as err:  # a broken parent package
+        return f"mujoco.mjx cannot be found: {err}"
+    return None
