@@ -7,8 +7,8 @@ import json
 import os
 
 import pytest
+from cli_errors import one_line_exit_2
 
-from adarl.cli.main import main
 from adarl.evaluation.synthetic import write_run, write_sweep
 from adarl.runs import checkpoints
 
@@ -18,16 +18,6 @@ def mujoco_env(monkeypatch):
     # `adarl play` sets these for MuJoCo; monkeypatch restores them afterwards
     monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
     monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
-
-
-def one_line_exit_2(argv, capsys, *needles):
-    code = main(argv)
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.count("\n") == 1, err
-    for needle in needles:
-        assert needle in err, err
-    return err
 
 
 def _commands(run, tmp_path):

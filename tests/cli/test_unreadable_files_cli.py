@@ -5,19 +5,10 @@ naming it, exit code 2, never a traceback, a hang or a read of /dev/zero."""
 import os
 
 import pytest
+from cli_errors import one_line_exit_2
 
 from adarl.cli.main import main
 from adarl.evaluation.synthetic import write_run
-
-
-def one_line_exit_2(argv, capsys, *needles):
-    code = main(argv)
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.count("\n") == 1, err
-    for needle in needles:
-        assert needle in err, err
-    return err
 
 
 def _commands(run, tmp_path):

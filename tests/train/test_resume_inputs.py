@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from cli_errors import one_line_exit_2
 
 from adarl.algos import sac_config
 from adarl.algos.sac_config import SAC_FAMILY
@@ -67,16 +68,6 @@ def files(run_dir: Path) -> dict:
 
 def resume(run_dir: Path) -> int:
     return main(["train", "--resume", str(run_dir), "--no-progress"])
-
-
-def one_line_exit_2(argv, capsys, *needles) -> str:
-    code = main(argv)
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.count("\n") == 1, err
-    for needle in needles:
-        assert needle in err, err
-    return err
 
 
 # ----------------------------------------------------------------------------- class 3
