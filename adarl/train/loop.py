@@ -8,11 +8,25 @@ bar, the triggers (`log_every`, `eval_every`, `checkpoint_every` and the end), t
 (arrays, meta.json, policy files), the divergence watch and the teardown.
 
 A learner (`adarl.train.sac_learner`, `adarl.train.rnac_learner`) owns its algorithm's state
-and how it acts and learns; what it must have is `adarl.train.learner.Learner`. The boundary runs
-one way: the loop calls `learner.advance(step)`, which returns the step reached, the episodes
-that finished and whether a truncation is due; the loop logs the episodes, takes the
-pre-truncation checkpoint, calls `learner.truncate(step)` and writes the spectra and
-truncations.csv rows it returns. Nothing in a learner touches the loop's logs or files.
+and how it acts and learns. It has:
+
+    algo, config, seeds, envs, rngs    one environment and NumPy generator per seed
+    env_options                        `envs.make` keywords of its environments (evaluation too)
+    train_columns                      train.csv's columns
+    extra_logs(run_dir, resuming)      more CSV logs, file name -> columns (e.g. truncations.csv)
+    fresh()                            initial state; resets the environments
+    restore(arrays, meta)              the state of a checkpoint
+    resumes_mid_step                   True if restored between an update and its step's end
+    advance(loop) -> step              act and learn up to the next step the loop must look at,
+                                       calling loop.episode_done for every finished episode
+    after_update(loop)                 what follows the update before the step's logs
+    train_rows(step, steps_per_s, watch)  train.csv rows since the last ones (may be empty)
+    policies()                         each seed's policy arrays (adarl.policy)
+    checkpoint_state() -> arrays, meta everything else needed to continue exactly
+    note_divergence(watch, step)       non-finite parameters, optimiser states, metrics
+
+Adding an on-policy algorithm (PPO, say) is a learner like RNAC's: its rollout buffer and
+normalisers in `advance`, its jitted update when the rollout is full (docs/algorithms.md).
 """
 
 from __future__ import annotations
@@ -20,17 +34,14 @@ from __future__ import annotations
 import math
 import sys
 import time
-from io import BytesIO
 from pathlib import Path
 
 import numpy as np
 
 from adarl.errors import UsageError
-from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, codec, folder, layout, logs, provenance
 from adarl.runs.lock import RunLock
 from adarl.train.guards import DivergenceWatch
-from adarl.train.learner import Episode, Learner, Truncation
 
 LOGS = (layout.EPISODES_CSV, layout.TRAIN_CSV, layout.EVAL_CSV)
 
@@ -124,7 +135,7 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
 class Loop:
     """A run in progress: its learner, step, logs, best policies and divergence watch."""
 
-    def __init__(self, learner: Learner, run_dir: Path, progress: bool):
+    def __init__(self, learner, run_dir: Path, progress: bool):
         self.learner, self.config = learner, learner.config
         self.run_dir, self.progress = run_dir, progress
         self.seeds = list(learner.seeds)
@@ -132,13 +143,10 @@ class Loop:
         self.best = BestPolicies(self.seeds)
         self.watch = DivergenceWatch(run_dir, self.config.on_divergence)
         self.logs, self.tb, self.recent_returns = {}, None, []
-        # restored from a pre-truncation checkpoint: the truncation of this step comes first
-        self.resumes_before_truncation = False
 
     def restore(self, path: Path, arrays: dict, meta: dict) -> None:
         self.step = int(meta["step"])
         self.learner.restore(arrays, meta)
-        self.resumes_before_truncation = meta.get("phase") == layout.PRE_TRUNCATION
         self.best.restore(meta, path)
         self.open_logs(checkpoints.csv_offsets(meta))
 
@@ -172,19 +180,19 @@ class Loop:
         for env in self.learner.envs:
             env.close()
 
-    def episode_done(self, episode: Episode) -> None:
-        """Log a finished episode (its seed's position, the step it ended at, its return)."""
-        seed, ep_return = self.seeds[episode.index], episode.ret
+    def episode_done(self, i: int, step: int, info: dict, ep_return: float, length: int) -> None:
+        """Log the episode of seed position `i` that ended at environment step `step`."""
+        seed = self.seeds[i]
         row = {
-            "step": episode.step,
+            "step": step,
             "seed": seed,
-            "episode": int(episode.info["episode_index"]),
+            "episode": int(info["episode_index"]),
             "return": float(ep_return),
-            "length": int(episode.length),
+            "length": int(length),
         }
-        row.update({f"p_{k}": v for k, v in episode.info["dynamics"].items()})
+        row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
         self.logs[layout.EPISODES_CSV].write(row)
-        self.tb.write(episode.step, {logs.tb_episode_return(seed): ep_return})
+        self.tb.write(step, {logs.tb_episode_return(seed): ep_return})
         self.recent_returns.append(float(ep_return))
         if not math.isfinite(ep_return):
             self.watch.note("episode return", [seed])
@@ -269,33 +277,13 @@ class Loop:
             else layout.CHECKPOINT_DIR,
         )
 
-    def truncate(self) -> None:
-        """The learner's truncation due at this step: first a checkpoint kept before it (unless
-        this run was restored from that very checkpoint, or a parameter is not finite), then
-        the cut, then its spectra and truncations.csv rows."""
-        c, learner = self.config, self.learner
-        if c.checkpoint_before_truncation and not self.resumes_before_truncation:
-            if learner.parameters_finite() and not self.watch.found:
-                self.save(phase=layout.PRE_TRUNCATION)  # never with non-finite parameters
-        self.resumes_before_truncation = False
-        self.write_truncation(learner.truncate(self.step))
-
-    def write_truncation(self, truncation: Truncation) -> None:
-        buf = BytesIO()
-        np.savez(buf, seeds=np.asarray(self.seeds), **truncation.spectra)
-        path = self.run_dir / layout.SPECTRA_DIR / layout.spectrum_file(self.step)
-        atomic_write_bytes(path, buf.getvalue())
-        log = self.logs[layout.TRUNCATIONS_CSV]
-        log.write([{k: row[k] for k in log.columns} for row in truncation.rows])
-
-    def end_of_step(self, truncation_due: bool) -> None:
-        """What follows the learner's update at a step the loop looks at: the truncation if one
-        is due, then the train.csv rows, the evaluation and the checkpoint due at this step
-        (every `*_every`, and at the end). A run restored from a pre-truncation checkpoint starts
-        here."""
+    def end_of_step(self) -> None:
+        """What follows the learner's update at a step the loop looks at: the learner's own
+        work (a truncation), then the train.csv rows, the evaluation and the checkpoint due at
+        this step (every `*_every`, and at the end). A run restored from a pre-truncation
+        checkpoint starts here."""
         c, t = self.config, self.step
-        if truncation_due:
-            self.truncate()
+        self.learner.after_update(self)
         if t % c.log_every == 0 or t == c.total_steps:
             now = time.perf_counter()
             t_log, s_log = self.clock
@@ -312,14 +300,11 @@ class Loop:
         c = self.config
         bar = _progress(c.total_steps, self.step, self.progress, f"{self.learner.algo} {c.task}")
         self.clock = time.perf_counter(), self.step  # (time, step) of the last train.csv rows
-        if self.resumes_before_truncation:
-            self.end_of_step(truncation_due=True)
+        if self.learner.resumes_mid_step:
+            self.end_of_step()
         while self.step < c.total_steps:
-            advanced = self.learner.advance(self.step)
-            self.step = advanced.step
-            for episode in advanced.episodes:
-                self.episode_done(episode)
-            self.end_of_step(advanced.truncation_due)
+            self.step = self.learner.advance(self)
+            self.end_of_step()
             recent = self.recent_returns = self.recent_returns[-10 * len(self.seeds) :]
             if bar is not None and (self.step - bar.n >= 256 or self.step == c.total_steps):
                 bar.set_postfix_str(

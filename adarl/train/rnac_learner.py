@@ -40,7 +40,6 @@ from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec
 from adarl.train import loop
 from adarl.train.guards import check_training_memory
-from adarl.train.learner import Advance, Episode
 
 
 # ============================================================================ double sampling
@@ -182,6 +181,7 @@ class RNACLearner:
     """Environments, double-sampling simulators, networks and host state of an RNAC run."""
 
     algo = "rnac"
+    resumes_mid_step = False
     train_columns = TRAIN_COLUMNS
 
     def __init__(self, config: RNACConfig):
@@ -253,13 +253,12 @@ class RNACLearner:
         arrays.update({f"host/{f.name}": getattr(host, f.name) for f in dataclasses.fields(Host)})
         return arrays, {}
 
-    def advance(self, step: int) -> Advance:
+    def advance(self, run: loop.Loop) -> int:
         """One environment step of every seed, and at the end of a rollout the update of every
-        seed on its rollout (vmapped)."""
+        seed on its rollout (vmapped). Returns the new step."""
         config, host = self.config, self.host
-        k = step % config.rollout_steps
-        step = step + 1
-        episodes: list[Episode] = []
+        k = run.step % config.rollout_steps
+        step = run.step + 1
         for i, (env, rng) in enumerate(zip(self.envs, self.rngs)):
             # --- act (NumPy copy of this rollout's parameters)
             actor, critic = self.params[i]
@@ -289,13 +288,13 @@ class RNACLearner:
             host.buf_terminated[i, k], host.buf_done[i, k] = terminated, terminated or truncated
             host.obs_norm[i] = next_norm
             if terminated or truncated:
-                episodes.append(Episode(i, step, info, host.ep_return[i], host.ep_length[i]))
+                run.episode_done(i, step, info, host.ep_return[i], host.ep_length[i])
                 host.ep_return[i], host.ep_length[i], host.ret_acc[i] = 0.0, 0, 0.0
                 obs, info = env.reset()
                 host.obs_norm[i] = _observe(host, i, obs, config)
         if step % config.rollout_steps == 0:
             self.learn(step)
-        return Advance(step, episodes)
+        return step
 
     def learn(self, step: int) -> None:
         """Update every seed on its full rollout, vmapped; the learning rate decays linearly
@@ -318,6 +317,9 @@ class RNACLearner:
         )
         host.metrics = np.asarray(metrics)
         self.params = host_params(self.state)
+
+    def after_update(self, run: loop.Loop) -> None:
+        pass
 
     def train_rows(self, step: int, steps_per_s: float, watch) -> list[dict]:
         """One train.csv row per seed: the latest update's metrics (NaN before the first)."""

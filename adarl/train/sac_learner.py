@@ -31,6 +31,7 @@ import dataclasses
 import functools
 import sys
 import weakref
+from io import BytesIO
 from pathlib import Path
 
 import jax
@@ -39,10 +40,10 @@ import numpy as np
 
 from adarl.algos import replay, sac, sac_config
 from adarl.errors import UsageError
+from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, codec, layout
 from adarl.train import loop
 from adarl.train.guards import check_training_memory
-from adarl.train.learner import Advance, Episode, Truncation
 
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
@@ -186,6 +187,7 @@ class SACLearner:
         self.train_columns = BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
 
     # ------------------------------------------------------------------ state
+    resumes_mid_step = False  # restored from a pre-truncation checkpoint: the truncation is due
 
     def fresh(self) -> None:
         states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
@@ -313,6 +315,7 @@ class SACLearner:
             lane.infos = [
                 {name: arrays[f"{PENDING}/{k}/{name}"][j] for name in names} for j in range(n)
             ]
+        self.resumes_mid_step = meta.get("phase") == layout.PRE_TRUNCATION
         self.obs = arrays["host/obs"].astype(np.float32)
         self.ep_return = arrays["host/ep_return"].copy()
         self.ep_length = arrays["host/ep_length"].copy()
@@ -363,9 +366,8 @@ class SACLearner:
             ]
         )
 
-    def env_step(self, lane: Lane, t: int, actions: np.ndarray, episodes: list[Episode]) -> None:
-        """Environment step `t` of the lane's seeds; rows go to the lane's chunk builder, finished
-        episodes to `episodes`."""
+    def env_step(self, lane: Lane, t: int, actions: np.ndarray, run: loop.Loop) -> None:
+        """Environment step `t` of the lane's seeds; rows go to the lane's chunk builder."""
         for j, i in enumerate(lane.seeds):
             env = self.envs[i]
             next_obs, reward, terminated, truncated, info = env.step(actions[j])
@@ -374,7 +376,7 @@ class SACLearner:
             done = terminated or truncated
             lane.builder.add(j, self.obs[i], actions[j], reward, terminated, next_obs, done)
             if done:
-                episodes.append(Episode(i, t, info, self.ep_return[i], self.ep_length[i]))
+                run.episode_done(i, t, info, self.ep_return[i], self.ep_length[i])
                 self.ep_return[i], self.ep_length[i] = 0.0, 0
                 next_obs, _ = env.reset()
             self.obs[i] = next_obs
@@ -393,29 +395,31 @@ class SACLearner:
             lane.state, _ = lane.fns.collect(lane.state, rows, n_rows)
         lane.builder.clear()
 
-    def advance(self, step: int) -> Advance:
-        """Advance every lane from `step` to the end of the current chunk of `update_every`
-        steps: step a lane's environments, start its update, go on to the next lane. AdaRL's
-        truncation is due after the chunks `sac.truncation_steps` lists."""
+    def advance(self, run: loop.Loop) -> int:
+        """Advance every lane to the end of the current chunk of `update_every` steps: step a
+        lane's environments, start its update, go on to the next lane. Returns the new step."""
         c = self.config
-        end = min((step // c.update_every + 1) * c.update_every, c.total_steps)
+        end = min((run.step // c.update_every + 1) * c.update_every, c.total_steps)
         update = end >= c.update_after
-        episodes: list[Episode] = []
         for lane in self.lanes:
-            for t in range(step + 1, end + 1):
-                self.env_step(lane, t, self.choose_actions(lane, t), episodes)
+            for t in range(run.step + 1, end + 1):
+                self.env_step(lane, t, self.choose_actions(lane, t), run)
             self.end_chunk(lane, update)
-        return Advance(end, episodes, end in self.truncation_steps)
+        return end
 
-    def parameters_finite(self) -> bool:
-        finite = self.gather(lambda lane: _finite_parameters(lane.state))
-        return all(np.all(ok) for ok in finite.values())
-
-    def truncate(self, step: int) -> Truncation:
-        """AdaRL's truncation: every bottleneck decomposed and cut (Eq. 5 and the retain clause,
-        `sac.truncate`), each lane narrowed to its ranks; returns the spectra and the
-        truncations.csv rows."""
+    def after_update(self, run: loop.Loop) -> None:
+        """AdaRL's truncation, at the steps `sac.truncation_steps` gives: a pre-truncation
+        checkpoint (unless restored from it), every bottleneck decomposed and cut (Eq. 5 and the
+        retain clause, `sac.truncate`), truncations.csv and the spectra written, and each lane
+        narrowed to its ranks."""
         c = self.config
+        if run.step not in self.truncation_steps:
+            return
+        if c.checkpoint_before_truncation and not self.resumes_mid_step:
+            finite = self.gather(lambda lane: _finite_parameters(lane.state))
+            if all(np.all(ok) for ok in finite.values()) and not run.watch.found:
+                run.save(phase=layout.PRE_TRUNCATION)  # never with non-finite parameters
+        self.resumes_mid_step = False
         old = self.gather(_ranks)
         reports = []
         full = _layer_widths(self.spec)
@@ -428,12 +432,17 @@ class SACLearner:
             reports.append(report)
         report = _concat_lanes(reports)
         spectra = {name: np.asarray(item[0]) for name, item in report.items()}
+        buf = BytesIO()
+        np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
+        atomic_write_bytes(
+            run.run_dir / layout.SPECTRA_DIR / layout.spectrum_file(run.step), buf.getvalue()
+        )
         rows = []
         for name, (_, proposed, new, candidate, error) in report.items():
             for i, seed in enumerate(self.seeds):
                 rows.append(
                     {
-                        "step": step,
+                        "step": run.step,
                         "seed": seed,
                         "layer": name,
                         "old_rank": int(old[name][i]),
@@ -446,9 +455,10 @@ class SACLearner:
                         ),
                     }
                 )
+        log = run.logs[layout.TRUNCATIONS_CSV]
+        log.write([{k: row[k] for k in log.columns} for row in rows])
         if c.compact_bottlenecks:
             self.narrow_bottlenecks(self.gather(_ranks))
-        return Truncation(spectra, rows)
 
     def narrow_bottlenecks(self, ranks: dict) -> None:
         """Store each lane's bottlenecks only as wide as its largest rank (and recompile its

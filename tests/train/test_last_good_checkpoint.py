@@ -63,19 +63,16 @@ def test_sac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     values.update(log_every=400, eval_every=400, checkpoint_every=100)  # one log point: the end
     config = sac_config.SACConfig(**values)
     poison, words = SAC_POISON[what]
-    original = sac_learner.SACLearner.advance
+    original = sac_learner.SACLearner.after_update
 
-    def then_poison(self, step):
-        advanced = original(self, step)
-        if (
-            advanced.step == 300
-        ):  # after the update of the chunk ending at 300, before its checkpoint
+    def then_poison(self, run):
+        original(self, run)
+        if run.step == 300:  # after the update of the chunk ending at 300, before its checkpoint
             lane = self.lanes[-1]  # seed 1 (one lane per seed)
             assert [self.seeds[i] for i in lane.seeds] == [1]
             lane.state = poison(lane.state)
-        return advanced
 
-    monkeypatch.setattr(sac_learner.SACLearner, "advance", then_poison)
+    monkeypatch.setattr(sac_learner.SACLearner, "after_update", then_poison)
     run_dir = tmp_path / "run"
     with pytest.raises(Diverged) as err:
         sac_learner.train(config, run_dir, progress=False)
