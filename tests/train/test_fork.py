@@ -15,7 +15,7 @@ from adarl.errors import UsageError
 from adarl.runs import checkpoints
 from adarl.runs.layout import PRE_TRUNCATION, PRE_TRUNCATION_DIR
 from adarl.runs.logs import read_csv
-from adarl.train import fork, sac_learner
+from adarl.train import fork, sac_learner, trainers
 
 CSVS = ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")
 
@@ -60,7 +60,7 @@ def assert_same_arrays(a: dict, b: dict):
 @pytest.fixture(scope="module")
 def parent(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("fork") / "parent"
-    sac_learner.train(tiny(), run_dir, progress=False)
+    trainers.train(tiny(), run_dir, progress=False)
     return run_dir
 
 
@@ -123,7 +123,7 @@ def test_a_fork_without_changes_continues_exactly_as_its_parent(parent, tmp_path
         prefix = [r for r in rows(parent, name) if int(r["step"]) <= last]
         assert rows(child, name) == prefix, name
     assert {r["step"] for r in rows(child, "eval.csv")} == {"400"}
-    sac_learner.train(planned.config, child, resume=True, progress=False)
+    trainers.train(planned.config, child, resume=True, progress=False)
     for name in CSVS:
         assert rows(child, name) == rows(parent, name), name
     assert_same_arrays(final_arrays(child), final_arrays(parent))
@@ -154,9 +154,9 @@ def test_the_forked_control_is_the_control_trained_from_scratch(parent, tmp_path
         "apply_cuts": {"from": True, "to": False},
     }
     fork.write(planned, forked, "")
-    sac_learner.train(planned.config, forked, resume=True, progress=False)
+    trainers.train(planned.config, forked, resume=True, progress=False)
     scratch = tmp_path / "scratch"
-    sac_learner.train(tiny("adarl-control"), scratch, progress=False)
+    trainers.train(tiny("adarl-control"), scratch, progress=False)
     for name in CSVS:
         assert rows(forked, name) == rows(scratch, name), name
     assert_same_arrays(final_arrays(forked), final_arrays(scratch))
@@ -247,7 +247,7 @@ def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkey
         tmp_path / "child"
     )
     with pytest.raises(UsageError, match="was interrupted while being made .*; fork again"):
-        sac_learner.train(planned.config, tmp_path / "child", resume=True, progress=False)
+        trainers.train(planned.config, tmp_path / "child", resume=True, progress=False)
 
 
 def test_forkable_fields_are_config_fields_and_the_sweeps_check_agrees():
