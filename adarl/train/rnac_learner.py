@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import jax
 import numpy as np
 
+from adarl.algos import schedule
 from adarl.algos.rnac import (
     METRICS,
     TRAIN_COLUMNS,
@@ -298,9 +299,7 @@ class RNACLearner:
         """Update every seed on its full rollout, vmapped; the learning rate decays linearly
         from the previous update's step, as in the original."""
         config, host = self.config, self.host
-        lr = config.lr
-        if config.lr_decay:
-            lr = config.lr * (1.0 - (step - config.rollout_steps) / config.total_steps)
+        lr = schedule.rnac_learning_rate(config, step)
         batch = {
             "obs": host.buf_obs,
             "actions": host.buf_actions,

@@ -19,7 +19,7 @@ taken after its update, so stepping a lane never waits behind another lane's upd
 still sees exactly Spinning Up's schedule: `update_every` steps with the current policy, then
 `update_every` updates.
 
-AdaRL truncates after the chunks `sac.truncation_steps` lists (the one place that says when):
+AdaRL truncates after the chunks `schedule.truncation_steps` lists (the one place that says when):
 `advance` returns the `TRUNCATE` event there, the loop keeps a pre-truncation checkpoint (a fork
 point), and `truncate` decomposes every bottleneck, narrows each lane's bottlenecks to its ranks
 and returns the spectra and truncations.csv rows for the loop to write.
@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from adarl.algos import replay, sac, sac_config
+from adarl.algos import replay, sac, sac_config, schedule
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec, layout
 from adarl.train.guards import check_training_memory
@@ -161,7 +161,7 @@ class SACLearner:
         # lanes: 0, one lane per seed; K (run folders written before), K groups of one width
         self.shared_widths = config.lanes > 0
         self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
-        self.truncation_steps = set(sac.truncation_steps(config))
+        self.truncation_steps = set(schedule.truncation_steps(config))
         check_training_memory(
             self.n,
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
@@ -391,8 +391,8 @@ class SACLearner:
         """Advance every lane from `step` to the end of the current chunk of `update_every`
         steps: step a lane's environments, start its update, go on to the next lane."""
         c = self.config
-        end = min((step // c.update_every + 1) * c.update_every, c.total_steps)
-        update = end >= c.update_after
+        end = schedule.chunk_end(c, step)
+        update = schedule.chunk_updates(c, end)
         episodes = []
         for lane in self.lanes:
             for t in range(step + 1, end + 1):
@@ -405,7 +405,7 @@ class SACLearner:
         return all(np.all(ok) for ok in finite.values())
 
     def truncate(self, step: int) -> Truncation:
-        """AdaRL's truncation, at the steps `sac.truncation_steps` gives: every bottleneck
+        """AdaRL's truncation, at the steps `schedule.truncation_steps` gives: every bottleneck
         decomposed and cut (Eq. 5 and the retain clause, `sac.truncate`) and each lane narrowed
         to its ranks; returns the spectra and truncations.csv rows."""
         c = self.config

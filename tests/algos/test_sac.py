@@ -451,7 +451,7 @@ def test_learning_rate_follows_the_chosen_schedule(schedule):
         "adarl", lr_schedule=schedule, total_steps=21_000, update_after=1_010, truncate_every=5_000
     )
     c = spec.config
-    assert sac.total_updates(c) == 20_000 and sac.n_truncations(c) == 4
+    assert schedule.total_updates(c) == 20_000 and schedule.n_truncations(c) == 4
     lr = lambda n, start, cuts: float(  # noqa: E731
         sac.learning_rate(
             spec,

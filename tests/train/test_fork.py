@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from adarl.algos import sac, sac_config
+from adarl.algos import sac, sac_config, schedule
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.runs import checkpoints
@@ -65,7 +65,7 @@ def parent(tmp_path_factory):
 
 
 def test_truncation_steps_follow_the_loops_counters():
-    """`sac.truncation_steps` against a step-by-step count of the loop's rules (chunks of
+    """`schedule.truncation_steps` against a step-by-step count of the loop's rules (chunks of
     update_every steps, updates from the chunk that reaches update_after, a truncation once the
     updates since the last one reach d_t)."""
     for total, every, after, d_t in itertools.product(
@@ -89,14 +89,14 @@ def test_truncation_steps_follow_the_loops_counters():
             if since >= d_t:
                 expected.append(step)
                 since = 0
-        assert sac.truncation_steps(config) == expected, (total, every, after, d_t)
-        assert sac.total_updates(config) == updates, (total, every, after, d_t)
-    assert sac.truncation_steps(tiny(algo="sac")) == []
+        assert schedule.truncation_steps(config) == expected, (total, every, after, d_t)
+        assert schedule.total_updates(config) == updates, (total, every, after, d_t)
+    assert schedule.truncation_steps(tiny(algo="sac")) == []
 
 
 def test_adarl_keeps_a_checkpoint_before_every_truncation(parent):
     cuts = sorted({int(r["step"]) for r in read_csv(parent / "truncations.csv")})
-    assert cuts == sac.truncation_steps(tiny()) == [550, 650, 750]
+    assert cuts == schedule.truncation_steps(tiny()) == [550, 650, 750]
     kept = [p.name for p in checkpoints.checkpoint_dirs(parent, PRE_TRUNCATION_DIR)]
     assert kept == [f"step_{s:012d}" for s in cuts]  # none rotated away (keep_checkpoints 1)
     assert [p.name for p in checkpoints.checkpoint_dirs(parent)] == ["step_000000000800"]

@@ -12,7 +12,7 @@ import jax
 import numpy as np
 import pytest
 
-from adarl.algos import sac, sac_config
+from adarl.algos import sac, sac_config, schedule
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.runs import checkpoints
@@ -81,7 +81,7 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
     )
     trainers.train(config, tmp_path / "full", progress=False)
     cuts = read_csv(tmp_path / "full" / "truncations.csv")
-    assert len(cuts) == sac.n_truncations(config) * 3 * 3  # truncations × layers × seeds
+    assert len(cuts) == schedule.n_truncations(config) * 3 * 3  # truncations × layers × seeds
     decisions = {row["decision"] for row in cuts}
     assert decisions <= {"accepted", "retained", "unchanged"}
     if "retain_tolerance" in rank_settings:  # the retain clause refuses some of the cuts
