@@ -1,6 +1,7 @@
-"""Rank adaptation maths for AdaRL: the rank rules, the SVD truncation of a bottleneck and the
-learning-rate schedule after each truncation. Pure functions in `jax.numpy` (usable inside `jit`
-and `vmap`) with the same semantics as the NumPy references in the tests.
+"""Rank adaptation maths for AdaRL: the rank rules and the SVD truncation of a bottleneck (the
+learning-rate schedule after each truncation is `adarl.algos.schedule`). Pure functions in
+`jax.numpy` (usable inside `jit` and `vmap`) with the same semantics as the NumPy references in
+the tests.
 
 A bottleneck is stored padded to its full width `d`: factors `w1` (in × d) and `w2` (d × out) and
 a 0/1 `mask` of length d whose first `rank` entries are 1. The layer computes
