@@ -65,7 +65,7 @@ def training_rate(
     def advance(k):
         target = run.step + k
         while run.step < target:
-            run.step = learner.advance(run)
+            run.step = learner.advance(run.step).step
             for lane in learner.lanes:
                 lane.infos.clear()
 

@@ -4,7 +4,7 @@ sets, and what double sampling costs.
     python bench/throughput_rnac.py                 # 1 seed, 20480 steps per setting
     python bench/throughput_rnac.py --steps 40960 --seeds 5
 
-Each setting runs `adarl.train.rnac_learner.train` in a temporary folder with the default (paper/original)
+Each setting runs `adarl.train.trainers.train` in a temporary folder with the default (paper/original)
 hyperparameters, one one-episode evaluation and one checkpoint at the end, after a one-rollout
 run that compiles the update. Also measured in the same process: the simulator alone (random actions through
 `adarl.envs.make`). Throughputs are given per wall-clock second and per CPU second of this process
@@ -31,7 +31,7 @@ import numpy as np
 from adarl.algos import rnac, rnac_config
 from adarl.runs.layout import EPISODES_CSV
 from adarl.runs.logs import read_csv
-from adarl.train import rnac_learner
+from adarl.train import rnac_learner, trainers
 
 
 class CountingShadow(rnac_learner.ShadowSimulator):
@@ -105,10 +105,10 @@ def train_throughput(task: str, steps: int, seeds: int, **overrides) -> dict:
     config = dataclasses.replace(config, log_every=config.rollout_steps)
     with tempfile.TemporaryDirectory() as tmp:
         warm = dataclasses.replace(config, total_steps=config.rollout_steps)
-        rnac_learner.train(warm, Path(tmp) / "warm-up", progress=False)
+        trainers.train(warm, Path(tmp) / "warm-up", progress=False)
         CountingShadow.simulated = 0
         wall, cpu = time.perf_counter(), time.process_time()
-        rnac_learner.train(config, Path(tmp) / "run", progress=False)
+        trainers.train(config, Path(tmp) / "run", progress=False)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         episodes = len(read_csv(Path(tmp) / "run" / EPISODES_CSV))
     return {

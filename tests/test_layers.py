@@ -12,7 +12,7 @@ import adarl
 PACKAGE = Path(adarl.__file__).parent
 # lowest first; a module may import from its own layer and the layers before it
 LAYERS = [
-    {"__init__", "__version__", "errors", "runtime", "files", "policy", "cluster"},
+    {"__init__", "__version__", "errors", "runtime", "files", "policy", "cluster", "schedules"},
     {"envs", "device"},  # device: the same tasks as pure JAX functions (MJX)
     {"lowrank"},  # the public rank-adaptation module: JAX and optax only, imports no adarl module
     {"nets"},
@@ -134,4 +134,14 @@ def test_no_module_imports_by_string():
         for path in sorted(PACKAGE.rglob("*.py"))
         for where in _string_imports(path)
     ]
+    assert not found, "; ".join(found)
+
+
+def test_learners_do_not_reach_into_the_loop():
+    """The loop drives a learner one way (`adarl.train.learner`): no learner imports the loop,
+    its logs, the run folder or the file writers; it returns what the loop writes."""
+    learners = [m for m in GRAPH if m.startswith("train.") and m.endswith("_learner")]
+    assert learners
+    forbidden = {"train.loop", "runs.logs", "runs.folder", "runs.lock", "runs.provenance", "files"}
+    found = [f"adarl.{m} imports adarl.{t}" for m in learners for t in GRAPH[m] if t in forbidden]
     assert not found, "; ".join(found)

@@ -1,11 +1,11 @@
 """Soft actor-critic in JAX, with AdaRL's rank-adaptive bottlenecks and the SAC-family baselines.
 
 Reads top to bottom: the networks, the losses, the jitted update (and the rank truncation), the
-policy export. Acting, the lanes of seeds and the truncation schedule are
-`adarl.train.sac_learner`; logging and checkpoints the one loop, `adarl.train.loop`. Every
-algorithm of the SAC family is a configuration of this file (`SACConfig` and `SAC_FAMILY` in
-`adarl.algos.sac_config`): `sac`, `adarl`, `adarl-control`, `sac-fixed-rank`, `sac-parseval`,
-`sac-sparse`.
+policy export. Acting and the lanes of seeds are `adarl.train.sac_learner`; the timeline (chunks,
+truncation steps, the learning rate) `adarl.algos.schedule`; logging and checkpoints the one
+loop, `adarl.train.loop`. Every algorithm of the SAC family is a configuration of this file
+(`SACConfig` and `SAC_FAMILY` in `adarl.algos.sac_config`): `sac`, `adarl`, `adarl-control`,
+`sac-fixed-rank`, `sac-parseval`, `sac-sparse`.
 
 SAC follows Spinning Up (`spinup/algos/pytorch/sac`), which the AdaRL paper builds on:
 squashed-Gaussian actor with log-std clamped to [−20, 2], twin Q-networks with a Polyak-averaged
@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from adarl.algos import replay
+from adarl.algos import replay, schedule
 from adarl.algos.sac_config import SACConfig
 from adarl.nets import mlp, rank
 from adarl.nets.gaussian import gaussian_log_prob
@@ -267,68 +267,9 @@ def regulariser(spec: Spec, layers, stacked: bool):
 
 # ============================================================================ update
 def learning_rate(spec: Spec, state, base_lr: float):
-    """The learning rate of the current update. Without rank adaptation it is constant. With it,
-    `lr_schedule` decides: `envelope` (default) follows one cosine over the run's gradient steps
-    and warms up to it after each truncation (`rank.envelope_learning_rate`, ReLoRA); `restart`
-    is constant before the first truncation and a full warm-up + cosine over each iteration of
-    d_t steps after it (`rank.restart_learning_rate`). `schedule_first_iteration` warms up at the
-    start too."""
-    c = spec.config
-    if not c.adapt_rank:
-        return jnp.asarray(base_lr, jnp.float32)
-    if c.lr_schedule == "envelope":
-        warm_up = state["n_truncations"] > 0
-        if c.schedule_first_iteration:
-            warm_up = jnp.asarray(True)
-        return rank.envelope_learning_rate(
-            state["n_updates"],
-            state["iteration_start"],
-            base_lr,
-            c.warmup_steps,
-            total_updates(c),
-            c.lr_min_ratio,
-            warm_up,
-        )
-    t = state["n_updates"] - state["iteration_start"]
-    scheduled = rank.restart_learning_rate(
-        t, base_lr, c.warmup_steps, c.truncate_every, c.lr_min_ratio
-    )
-    if c.schedule_first_iteration:
-        return scheduled
-    return jnp.where(state["n_truncations"] > 0, scheduled, base_lr)
-
-
-def updating_chunks(config: SACConfig) -> range:
-    """The chunks of a run that make gradient steps, as the loop runs them: chunk k (k ≥ 1) ends
-    at step min(k·update_every, total_steps) and runs `update_every` updates if it ends at or
-    after `update_after`."""
-    c = config
-    if c.update_after > c.total_steps:
-        return range(0)
-    n_chunks = -(-c.total_steps // c.update_every)
-    return range(max(-(-c.update_after // c.update_every), 1), n_chunks + 1)
-
-
-def total_updates(config: SACConfig) -> int:
-    """Gradient steps in a whole run: `update_every` per updating chunk."""
-    return len(updating_chunks(config)) * config.update_every
-
-
-def truncation_steps(config: SACConfig) -> list[int]:
-    """The environment steps at which a run of this config truncates, as the loop finds them: a
-    truncation follows the chunk after which the updates since the last one reach d_t, i.e. every
-    ⌈d_t / update_every⌉-th updating chunk (an iteration of d_t rounded up to update_every)."""
-    if not config.adapt_rank:
-        return []
-    c = config
-    per_iteration = -(-c.truncate_every // c.update_every)
-    chunks = updating_chunks(c)[per_iteration - 1 :: per_iteration]
-    return [min(chunk * c.update_every, c.total_steps) for chunk in chunks]
-
-
-def n_truncations(config: SACConfig) -> int:
-    """How many truncations a run of this config makes."""
-    return len(truncation_steps(config))
+    """The learning rate of the current update, from the counters the state carries
+    (`schedule.learning_rate`, the one schedule, computed here with `jax.numpy`)."""
+    return schedule.learning_rate(spec.config, base_lr, state, jnp)
 
 
 def update_step(spec: Spec, state: dict, _=None):

@@ -77,14 +77,14 @@ def run(args) -> int:
 
 def _adarl_budget(task: str) -> str:
     """AdaRL's default budget on the task and how many truncations it makes."""
-    from adarl.algos import registry, sac
+    from adarl.algos import registry, schedule
 
     adarl = registry.get("adarl")
     budget = adarl.task_defaults[task]
     config = adarl.config_class(**adarl.defaults, task=task, **budget)
     return (
         f"adarl default budget: {budget['total_steps']:,} steps, d_t = "
-        f"{budget['truncate_every']:,} gradient steps ({sac.n_truncations(config)} truncations)"
+        f"{budget['truncate_every']:,} gradient steps ({schedule.n_truncations(config)} truncations)"
     )
 
 

@@ -460,17 +460,16 @@ def learning_rate_schedules(
 ) -> Figure:
     """The actor's learning rate over an AdaRL run of `total_steps` steps and d_t =
     `truncate_every` (default: the paper's Hopper schedule) under `--lr-schedule envelope` and
-    `restart`, computed by `sac.learning_rate` itself at the config's defaults; warm-ups drawn to
-    scale."""
-    from adarl.algos import sac
+    `restart`, computed by `schedule.learning_rate` itself (the training's own schedule) at the
+    config's defaults; warm-ups drawn to scale."""
+    from adarl.algos import schedule
     from adarl.algos.sac_config import SAC_FAMILY, SACConfig
 
     config = SACConfig(
         total_steps=total_steps, truncate_every=truncate_every, **SAC_FAMILY["adarl"]
     )
-    total_updates, warmup = sac.total_updates(config), config.warmup_steps
-    period = -(-truncate_every // config.update_every) * config.update_every  # d_t, in whole chunks
-    cut_updates = [k * period for k in range(1, sac.n_truncations(config) + 1)]
+    total_updates, warmup = schedule.total_updates(config), config.warmup_steps
+    cut_updates = schedule.truncation_updates(config)
     t = np.unique(
         np.concatenate(
             [
@@ -479,16 +478,11 @@ def learning_rate_schedules(
             ]
         )
     )
-    cuts = np.searchsorted(np.asarray(cut_updates), t, side="right")
-    state = {  # the loop's counters after t updates
-        "n_updates": t,
-        "n_truncations": cuts,
-        "iteration_start": np.concatenate([[0], cut_updates])[cuts],
-    }
+    state = schedule.counters(config, t)  # the update's counters after t updates
 
-    def rate(schedule: str) -> np.ndarray:
-        spec = sac.make_spec(dataclasses.replace(config, lr_schedule=schedule), 1, 1, [-1], [1])
-        return np.asarray(sac.learning_rate(spec, state, config.lr_actor))
+    def rate(name: str) -> np.ndarray:
+        c = dataclasses.replace(config, lr_schedule=name)
+        return np.asarray(schedule.learning_rate(c, config.lr_actor, state))
 
     envelope, restart = rate("envelope"), rate("restart")
     fig = Figure(figsize=(COLUMN_WIDTH, PANEL_HEIGHT), layout="constrained")

@@ -28,6 +28,8 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from adarl import schedules
+
 RANK_RULES = ("cumulative", "ratio", "energy", "energy-squared")
 
 # ============================================================================ rank rules
@@ -421,54 +423,22 @@ def to_compact(params: Any) -> Any:
 # ============================================================================ learning rate
 
 
-def restart_learning_rate(
-    step_in_iteration,
-    base_lr: float,
-    warmup_steps: int,
-    iteration_steps: int,
-    min_ratio: float,
-):
-    """Learning rate after an optimiser reset (ReLoRA-style restart, paper appendix).
-
-    Linear warm-up from 0 to `base_lr` over `warmup_steps`, then cosine decay from `base_lr` to
-    `min_ratio · base_lr` over the rest of the iteration (`iteration_steps` in all):
-        t < w:  lr = base · t / w
-        t ≥ w:  lr = base · (m + (1 − m) · ½ (1 + cos(π · min(1, (t − w) / (T − w)))))
-    """
-    t = jnp.asarray(step_in_iteration, jnp.float32)
-    warm = t / max(warmup_steps, 1)
-    decay_len = max(iteration_steps - warmup_steps, 1)
-    progress = jnp.clip((t - warmup_steps) / decay_len, 0.0, 1.0)
-    cosine = min_ratio + (1.0 - min_ratio) * 0.5 * (1.0 + jnp.cos(jnp.pi * progress))
-    return base_lr * jnp.where(t < warmup_steps, warm, cosine)
+def restart_learning_rate(step_in_iteration, base_lr, warmup_steps, iteration_steps, min_ratio):
+    """`adarl.schedules.restart_learning_rate` in `jax.numpy`: linear warm-up to `base_lr`, then a
+    cosine to `min_ratio · base_lr` over the rest of an iteration of `iteration_steps`."""
+    return schedules.restart_learning_rate(
+        step_in_iteration, base_lr, warmup_steps, iteration_steps, min_ratio, xp=jnp
+    )
 
 
 def envelope_learning_rate(
-    update,
-    iteration_start,
-    base_lr: float,
-    warmup_steps: int,
-    total_updates: int,
-    min_ratio: float,
-    warm_up,
+    update, iteration_start, base_lr, warmup_steps, total_updates, min_ratio, warm_up
 ):
-    """ReLoRA's schedule (its `get_cosine_schedule_with_multiple_warmups`): one cosine envelope
-    over the whole run, and after each optimiser reset a linear warm-up that rises to the
-    envelope's value at the end of the warm-up:
-        env(t) = base · (m + (1 − m) · ½ (1 + cos(π · min(1, t / T))))
-        τ = t − t_reset < w (and `warm_up`):  lr = env(t_reset + w) · τ / w;  otherwise lr = env(t)
-    `t` counts gradient steps from the start of the run and T is the run's total."""
-    t = jnp.asarray(update, jnp.float32)
-    start = jnp.asarray(iteration_start, jnp.float32)
-
-    def envelope(x):
-        progress = jnp.clip(x / max(total_updates, 1), 0.0, 1.0)
-        return base_lr * (min_ratio + (1.0 - min_ratio) * 0.5 * (1.0 + jnp.cos(jnp.pi * progress)))
-
-    tau = t - start
-    warming = jnp.logical_and(warm_up, tau < warmup_steps)
-    ramp = envelope(start + warmup_steps) * tau / max(warmup_steps, 1)
-    return jnp.where(warming, ramp, envelope(t))
+    """`adarl.schedules.envelope_learning_rate` in `jax.numpy`: ReLoRA's cosine envelope over the
+    run, with a linear warm-up after each optimiser reset at `iteration_start`."""
+    return schedules.envelope_learning_rate(
+        update, iteration_start, base_lr, warmup_steps, total_updates, min_ratio, warm_up, xp=jnp
+    )
 
 
 def envelope_schedule(

@@ -228,12 +228,12 @@ def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:
             step = fork.fork_step(parent.config, at)
         except UsageError as exc:
             raise UsageError(f"{here}: {exc}") from None
-        from adarl.algos import sac
+        from adarl.algos import schedule
 
-        if step not in sac.truncation_steps(parent.config):
+        if step not in schedule.truncation_steps(parent.config):
             raise UsageError(
                 f"{here}: fork at step {step}: {parent_id} truncates at "
-                f"{', '.join(map(str, sac.truncation_steps(parent.config))) or 'no step'}; "
+                f"{', '.join(map(str, schedule.truncation_steps(parent.config))) or 'no step'}; "
                 f"a sweep forks at a truncation ({fork.FIRST_TRUNCATION} or one of those steps)"
             )
         if not parent.config.checkpoint_before_truncation:

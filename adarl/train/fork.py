@@ -122,11 +122,11 @@ def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) ->
 def fork_step(config, at: str | int) -> int:
     """`at` as an environment step: a number, or `first-truncation` (the first step at which a
     run of `config` truncates)."""
-    from adarl.algos import sac
+    from adarl.algos import schedule
 
     text = str(at).strip().replace("_", "-")
     if text == FIRST_TRUNCATION:
-        steps = sac.truncation_steps(config)
+        steps = schedule.truncation_steps(config)
         if not steps:
             raise UsageError(
                 f"--at {FIRST_TRUNCATION}: a {config.algo} run of {config.total_steps} steps with "

@@ -8,22 +8,9 @@ bar, the triggers (`log_every`, `eval_every`, `checkpoint_every` and the end), t
 (arrays, meta.json, policy files), the divergence watch and the teardown.
 
 A learner (`adarl.train.sac_learner`, `adarl.train.rnac_learner`) owns its algorithm's state
-and how it acts and learns. It has:
-
-    algo, config, seeds, envs, rngs    one environment and NumPy generator per seed
-    env_options                        `envs.make` keywords of its environments (evaluation too)
-    train_columns                      train.csv's columns
-    extra_logs(run_dir, resuming)      more CSV logs, file name -> columns (e.g. truncations.csv)
-    fresh()                            initial state; resets the environments
-    restore(arrays, meta)              the state of a checkpoint
-    resumes_mid_step                   True if restored between an update and its step's end
-    advance(loop) -> step              act and learn up to the next step the loop must look at,
-                                       calling loop.episode_done for every finished episode
-    after_update(loop)                 what follows the update before the step's logs
-    train_rows(step, steps_per_s, watch)  train.csv rows since the last ones (may be empty)
-    policies()                         each seed's policy arrays (adarl.policy)
-    checkpoint_state() -> arrays, meta everything else needed to continue exactly
-    note_divergence(watch, step)       non-finite parameters, optimiser states, metrics
+and how it acts and learns; the loop drives it one way through `adarl.train.learner.Learner`
+(its members, the `Advance` each step returns and the `Event`s due), and writes whatever it
+returns (episodes, train.csv rows, a truncation's spectra and rows, checkpoints).
 
 Adding an on-policy algorithm (PPO, say) is a learner like RNAC's: its rollout buffer and
 normalisers in `advance`, its jitted update when the rollout is full (docs/algorithms.md).
@@ -34,14 +21,18 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Callable
+from io import BytesIO
 from pathlib import Path
 
 import numpy as np
 
 from adarl.errors import UsageError
+from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, codec, folder, layout, logs, provenance
 from adarl.runs.lock import RunLock
 from adarl.train.guards import DivergenceWatch
+from adarl.train.learner import Episode, Event, Learner, Truncation, due
 
 LOGS = (layout.EPISODES_CSV, layout.TRAIN_CSV, layout.EVAL_CSV)
 
@@ -98,7 +89,14 @@ class BestPolicies:
             self.record[int(key)] = {"step": int(record["step"]), "return": float(record["return"])}
 
 
-def train(make_learner, config, run_dir, resume: bool, progress: bool, command: str) -> Path:
+def train(
+    make_learner: Callable[..., Learner],
+    config,
+    run_dir,
+    resume: bool = False,
+    progress: bool = True,
+    command: str = "",
+) -> Path:
     """Train (or resume) a run of `config` into `run_dir` with the learner `make_learner(config)`;
     returns the run folder. The run folder's lock is held from the first write to the end
     (docs/reliability.md)."""
@@ -114,7 +112,7 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
             path, arrays, meta = folder.newest_to_resume(run_dir, config)
             if meta is None:  # killed before its first checkpoint: start again, nothing half-done
                 loop.learner.fresh()
-                loop.open_logs({name: 0 for name in loop.log_names(resuming=True)})
+                loop.open_logs({name: 0 for name in loop.log_names()})
             else:
                 loop.restore(path, arrays, meta)
             provenance.record_resume(run_dir, loop.step)  # the code that goes on from here
@@ -135,7 +133,7 @@ def train(make_learner, config, run_dir, resume: bool, progress: bool, command: 
 class Loop:
     """A run in progress: its learner, step, logs, best policies and divergence watch."""
 
-    def __init__(self, learner, run_dir: Path, progress: bool):
+    def __init__(self, learner: Learner, run_dir: Path, progress: bool):
         self.learner, self.config = learner, learner.config
         self.run_dir, self.progress = run_dir, progress
         self.seeds = list(learner.seeds)
@@ -143,16 +141,31 @@ class Loop:
         self.best = BestPolicies(self.seeds)
         self.watch = DivergenceWatch(run_dir, self.config.on_divergence)
         self.logs, self.tb, self.recent_returns = {}, None, []
+        self.resumes_mid_step = False  # restored from a pre-truncation checkpoint
 
     def restore(self, path: Path, arrays: dict, meta: dict) -> None:
         self.step = int(meta["step"])
         self.learner.restore(arrays, meta)
+        self.resumes_mid_step = meta.get("phase") == layout.PRE_TRUNCATION
         self.best.restore(meta, path)
         self.open_logs(checkpoints.csv_offsets(meta))
 
     # ------------------------------------------------------------------ logs
-    def log_names(self, resuming: bool) -> list[str]:
-        return [*LOGS, *self.learner.extra_logs(self.run_dir, resuming)]
+    def log_names(self) -> list[str]:
+        return [*LOGS, *self.learner.extra_logs]
+
+    def extra_columns(self, resuming: bool) -> dict[str, list[str]]:
+        """The learner's logs and their columns: a resumed file keeps an older column set its
+        header has."""
+        columns = {}
+        for name, (current, *older) in self.learner.extra_logs.items():
+            columns[name] = current
+            path = self.run_dir / name
+            if resuming and older and path.exists() and path.stat().st_size:
+                with open(path, encoding="utf-8", errors="replace") as f:  # CsvLog names a bad one
+                    header = sorted(f.readline(1 << 16).strip().split(","))
+                columns[name] = next((c for c in older if sorted(c) == header), current)
+        return columns
 
     def open_logs(self, offsets: dict | None) -> None:
         """Open the CSV and TensorBoard logs; resuming (`offsets`: file name -> byte offset of
@@ -165,7 +178,7 @@ class Loop:
             layout.EPISODES_CSV: logs.episode_columns(params),
             layout.TRAIN_CSV: self.learner.train_columns,
             layout.EVAL_CSV: logs.EVAL_COLUMNS,
-            **self.learner.extra_logs(d, offsets is not None),
+            **self.extra_columns(offsets is not None),
         }
         self.logs = {name: logs.CsvLog(d / name, cols) for name, cols in columns.items()}
         self.tb = logs.Scalars(
@@ -180,8 +193,10 @@ class Loop:
         for env in self.learner.envs:
             env.close()
 
-    def episode_done(self, i: int, step: int, info: dict, ep_return: float, length: int) -> None:
-        """Log the episode of seed position `i` that ended at environment step `step`."""
+    def episode_done(self, episode: Episode) -> None:
+        """Log an episode a learner's `advance` finished."""
+        i, step, info = episode.index, episode.step, episode.info
+        ep_return, length = episode.ret, episode.length
         seed = self.seeds[i]
         row = {
             "step": step,
@@ -277,22 +292,38 @@ class Loop:
             else layout.CHECKPOINT_DIR,
         )
 
-    def end_of_step(self) -> None:
-        """What follows the learner's update at a step the loop looks at: the learner's own
-        work (a truncation), then the train.csv rows, the evaluation and the checkpoint due at
-        this step (every `*_every`, and at the end). A run restored from a pre-truncation
-        checkpoint starts here."""
-        c, t = self.config, self.step
-        self.learner.after_update(self)
-        if t % c.log_every == 0 or t == c.total_steps:
+    def truncate(self, pre_checkpoint: bool) -> None:
+        """The learner's truncation: first (`pre_checkpoint`, and if the config asks) a
+        pre-truncation checkpoint, never of non-finite parameters; then the spectra and the
+        truncations.csv rows the learner returns."""
+        if pre_checkpoint and self.config.checkpoint_before_truncation:
+            if self.learner.parameters_finite() and not self.watch.found:
+                self.save(phase=layout.PRE_TRUNCATION)
+        result: Truncation = self.learner.truncate(self.step)
+        buf = BytesIO()
+        np.savez(buf, seeds=np.asarray(self.seeds), **result.spectra)
+        atomic_write_bytes(
+            self.run_dir / layout.SPECTRA_DIR / layout.spectrum_file(self.step), buf.getvalue()
+        )
+        log = self.logs[layout.TRUNCATIONS_CSV]
+        log.write([{k: row[k] for k in log.columns} for row in result.rows])
+
+    def end_of_step(self, events: frozenset[Event], pre_checkpoint: bool = True) -> None:
+        """What follows the learner's update at a step the loop looks at, as `events` says: a
+        truncation, then the train.csv rows, the evaluation and the checkpoint. A run restored
+        from a pre-truncation checkpoint starts here (without that checkpoint)."""
+        t = self.step
+        if Event.TRUNCATE in events:
+            self.truncate(pre_checkpoint)
+        if Event.LOG in events:
             now = time.perf_counter()
             t_log, s_log = self.clock
             self.write_train_rows((t - s_log) / max(now - t_log, 1e-9))
             self.check_divergence()
             self.clock = now, t
-        if t % c.eval_every == 0 or t == c.total_steps:
+        if Event.EVALUATE in events:
             self.evaluate()
-        if t % c.checkpoint_every == 0 or t == c.total_steps:
+        if Event.CHECKPOINT in events:
             self.check_divergence()  # never checkpoint non-finite parameters
             self.save()
 
@@ -300,11 +331,14 @@ class Loop:
         c = self.config
         bar = _progress(c.total_steps, self.step, self.progress, f"{self.learner.algo} {c.task}")
         self.clock = time.perf_counter(), self.step  # (time, step) of the last train.csv rows
-        if self.learner.resumes_mid_step:
-            self.end_of_step()
+        if self.resumes_mid_step:
+            self.end_of_step(due(c, self.step, truncate=True), pre_checkpoint=False)
         while self.step < c.total_steps:
-            self.step = self.learner.advance(self)
-            self.end_of_step()
+            advance = self.learner.advance(self.step)
+            for episode in advance.episodes:
+                self.episode_done(episode)
+            self.step = advance.step
+            self.end_of_step(advance.events)
             recent = self.recent_returns = self.recent_returns[-10 * len(self.seeds) :]
             if bar is not None and (self.step - bar.n >= 256 or self.step == c.total_steps):
                 bar.set_postfix_str(

@@ -13,11 +13,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import jax
 import numpy as np
 
+from adarl.algos import schedule
 from adarl.algos.rnac import (
     METRICS,
     TRAIN_COLUMNS,
@@ -38,8 +38,8 @@ from adarl.algos.rnac_config import RNACConfig
 from adarl.envs.env import model_sizes
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec
-from adarl.train import loop
 from adarl.train.guards import check_training_memory
+from adarl.train.learner import Advance, Episode, Truncation, due
 
 
 # ============================================================================ double sampling
@@ -181,8 +181,8 @@ class RNACLearner:
     """Environments, double-sampling simulators, networks and host state of an RNAC run."""
 
     algo = "rnac"
-    resumes_mid_step = False
     train_columns = TRAIN_COLUMNS
+    extra_logs: dict = {}
 
     def __init__(self, config: RNACConfig):
         from adarl import envs
@@ -224,9 +224,6 @@ class RNACLearner:
         self.host = Host.zeros(len(self.seeds), self.obs_dim, self.act_dim, config.rollout_steps)
         self.params = host_params(self.state)  # NumPy (actor, critic) per seed for the rollout
 
-    def extra_logs(self, run_dir: Path, resuming: bool) -> dict[str, list[str]]:
-        return {}
-
     def fresh(self) -> None:
         for i, (env, s) in enumerate(zip(self.envs, self.seeds)):
             obs, _ = env.reset(seed=s)
@@ -253,12 +250,12 @@ class RNACLearner:
         arrays.update({f"host/{f.name}": getattr(host, f.name) for f in dataclasses.fields(Host)})
         return arrays, {}
 
-    def advance(self, run: loop.Loop) -> int:
+    def advance(self, step: int) -> Advance:
         """One environment step of every seed, and at the end of a rollout the update of every
-        seed on its rollout (vmapped). Returns the new step."""
+        seed on its rollout (vmapped)."""
         config, host = self.config, self.host
-        k = run.step % config.rollout_steps
-        step = run.step + 1
+        k = step % config.rollout_steps
+        step, episodes = step + 1, []
         for i, (env, rng) in enumerate(zip(self.envs, self.rngs)):
             # --- act (NumPy copy of this rollout's parameters)
             actor, critic = self.params[i]
@@ -288,21 +285,21 @@ class RNACLearner:
             host.buf_terminated[i, k], host.buf_done[i, k] = terminated, terminated or truncated
             host.obs_norm[i] = next_norm
             if terminated or truncated:
-                run.episode_done(i, step, info, host.ep_return[i], host.ep_length[i])
+                episodes.append(
+                    Episode(i, step, info, float(host.ep_return[i]), int(host.ep_length[i]))
+                )
                 host.ep_return[i], host.ep_length[i], host.ret_acc[i] = 0.0, 0, 0.0
                 obs, info = env.reset()
                 host.obs_norm[i] = _observe(host, i, obs, config)
         if step % config.rollout_steps == 0:
             self.learn(step)
-        return step
+        return Advance(step, episodes, due(config, step))
 
     def learn(self, step: int) -> None:
         """Update every seed on its full rollout, vmapped; the learning rate decays linearly
         from the previous update's step, as in the original."""
         config, host = self.config, self.host
-        lr = config.lr
-        if config.lr_decay:
-            lr = config.lr * (1.0 - (step - config.rollout_steps) / config.total_steps)
+        lr = schedule.rnac_learning_rate(config, step)
         batch = {
             "obs": host.buf_obs,
             "actions": host.buf_actions,
@@ -318,8 +315,12 @@ class RNACLearner:
         host.metrics = np.asarray(metrics)
         self.params = host_params(self.state)
 
-    def after_update(self, run: loop.Loop) -> None:
-        pass
+    def parameters_finite(self) -> bool:
+        leaves = jax.tree.leaves(self.params)
+        return all(np.all(np.isfinite(x)) for x in leaves)
+
+    def truncate(self, step: int) -> Truncation:
+        raise NotImplementedError("RNAC keeps its networks' ranks: it never truncates")
 
     def train_rows(self, step: int, steps_per_s: float, watch) -> list[dict]:
         """One train.csv row per seed: the latest update's metrics (NaN before the first)."""
@@ -360,15 +361,3 @@ class RNACLearner:
             leaves = [np.reshape(x, (n_seeds, -1)) for x in jax.tree.leaves(jax.device_get(opt))]
             watch.note_values(f"{net} optimiser state", seeds, np.concatenate(leaves, axis=1))
         watch.note_values("episode return", seeds, self.host.ep_return)
-
-
-def train(
-    config: RNACConfig,
-    run_dir: str | Path,
-    resume: bool = False,
-    progress: bool = True,
-    command: str = "",
-) -> Path:
-    """Train (or resume) RNAC for every seed of `config` into `run_dir`
-    (`adarl.train.loop.train`)."""
-    return loop.train(RNACLearner, config, run_dir, resume, progress, command)

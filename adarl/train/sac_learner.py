@@ -19,9 +19,10 @@ taken after its update, so stepping a lane never waits behind another lane's upd
 still sees exactly Spinning Up's schedule: `update_every` steps with the current policy, then
 `update_every` updates.
 
-AdaRL truncates after the chunks `sac.truncation_steps` lists (the one place that says when):
-it keeps a pre-truncation checkpoint (a fork point), decomposes every bottleneck, writes
-truncations.csv and the spectra, and narrows each lane's bottlenecks to its ranks.
+AdaRL truncates after the chunks `schedule.truncation_steps` lists (the one place that says when):
+`advance` returns the `TRUNCATE` event there, the loop keeps a pre-truncation checkpoint (a fork
+point), and `truncate` decomposes every bottleneck, narrows each lane's bottlenecks to its ranks
+and returns the spectra and truncations.csv rows for the loop to write.
 `checkpoint_state` holds everything needed to continue exactly (docs/run-format.md).
 """
 
@@ -31,19 +32,16 @@ import dataclasses
 import functools
 import sys
 import weakref
-from io import BytesIO
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from adarl.algos import replay, sac, sac_config
+from adarl.algos import replay, sac, sac_config, schedule
 from adarl.errors import UsageError
-from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, codec, layout
-from adarl.train import loop
 from adarl.train.guards import check_training_memory
+from adarl.train.learner import Advance, Episode, Truncation, due
 
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
 # proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
@@ -163,7 +161,7 @@ class SACLearner:
         # lanes: 0, one lane per seed; K (run folders written before), K groups of one width
         self.shared_widths = config.lanes > 0
         self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
-        self.truncation_steps = set(sac.truncation_steps(config))
+        self.truncation_steps = set(schedule.truncation_steps(config))
         check_training_memory(
             self.n,
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
@@ -185,10 +183,14 @@ class SACLearner:
         if config.sparse_width:
             extra.append("active_fraction")
         self.train_columns = BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
+        # AdaRL's truncations.csv (a run from before the retain clause keeps its columns)
+        self.extra_logs = (
+            {layout.TRUNCATIONS_CSV: (TRUNCATION_COLUMNS, LEGACY_TRUNCATION_COLUMNS)}
+            if config.adapt_rank
+            else {}
+        )
 
     # ------------------------------------------------------------------ state
-    resumes_mid_step = False  # restored from a pre-truncation checkpoint: the truncation is due
-
     def fresh(self) -> None:
         states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
         self.set_lanes(jax.tree_util.tree_map(lambda *a: np.stack(a), *states))
@@ -315,25 +317,12 @@ class SACLearner:
             lane.infos = [
                 {name: arrays[f"{PENDING}/{k}/{name}"][j] for name in names} for j in range(n)
             ]
-        self.resumes_mid_step = meta.get("phase") == layout.PRE_TRUNCATION
         self.obs = arrays["host/obs"].astype(np.float32)
         self.ep_return = arrays["host/ep_return"].copy()
         self.ep_length = arrays["host/ep_length"].copy()
         self.rngs = checkpoints.restore_rngs(meta, self.seeds)
         for env, env_state in zip(self.envs, meta["env_states"]):
             env.set_state(codec.decode_env_state(env_state, arrays))
-
-    def extra_logs(self, run_dir: Path, resuming: bool) -> dict[str, list[str]]:
-        """AdaRL's truncations.csv (a run from before the retain clause keeps its columns)."""
-        if not self.config.adapt_rank:
-            return {}
-        path = run_dir / layout.TRUNCATIONS_CSV
-        if resuming and path.exists() and path.stat().st_size:
-            with open(path, encoding="utf-8", errors="replace") as f:  # CsvLog names a bad one
-                header = f.readline(1 << 16).strip().split(",")
-            if sorted(header) == sorted(LEGACY_TRUNCATION_COLUMNS):
-                return {layout.TRUNCATIONS_CSV: LEGACY_TRUNCATION_COLUMNS}
-        return {layout.TRUNCATIONS_CSV: TRUNCATION_COLUMNS}
 
     # ------------------------------------------------------------------ acting and learning
     def host_actors(self, lane: Lane) -> list:
@@ -366,8 +355,9 @@ class SACLearner:
             ]
         )
 
-    def env_step(self, lane: Lane, t: int, actions: np.ndarray, run: loop.Loop) -> None:
-        """Environment step `t` of the lane's seeds; rows go to the lane's chunk builder."""
+    def env_step(self, lane: Lane, t: int, actions: np.ndarray, episodes: list) -> None:
+        """Environment step `t` of the lane's seeds; rows go to the lane's chunk builder,
+        finished episodes to `episodes`."""
         for j, i in enumerate(lane.seeds):
             env = self.envs[i]
             next_obs, reward, terminated, truncated, info = env.step(actions[j])
@@ -376,7 +366,9 @@ class SACLearner:
             done = terminated or truncated
             lane.builder.add(j, self.obs[i], actions[j], reward, terminated, next_obs, done)
             if done:
-                run.episode_done(i, t, info, self.ep_return[i], self.ep_length[i])
+                episodes.append(
+                    Episode(i, t, info, float(self.ep_return[i]), int(self.ep_length[i]))
+                )
                 self.ep_return[i], self.ep_length[i] = 0.0, 0
                 next_obs, _ = env.reset()
             self.obs[i] = next_obs
@@ -395,31 +387,28 @@ class SACLearner:
             lane.state, _ = lane.fns.collect(lane.state, rows, n_rows)
         lane.builder.clear()
 
-    def advance(self, run: loop.Loop) -> int:
-        """Advance every lane to the end of the current chunk of `update_every` steps: step a
-        lane's environments, start its update, go on to the next lane. Returns the new step."""
+    def advance(self, step: int) -> Advance:
+        """Advance every lane from `step` to the end of the current chunk of `update_every`
+        steps: step a lane's environments, start its update, go on to the next lane."""
         c = self.config
-        end = min((run.step // c.update_every + 1) * c.update_every, c.total_steps)
-        update = end >= c.update_after
+        end = schedule.chunk_end(c, step)
+        update = schedule.chunk_updates(c, end)
+        episodes = []
         for lane in self.lanes:
-            for t in range(run.step + 1, end + 1):
-                self.env_step(lane, t, self.choose_actions(lane, t), run)
+            for t in range(step + 1, end + 1):
+                self.env_step(lane, t, self.choose_actions(lane, t), episodes)
             self.end_chunk(lane, update)
-        return end
+        return Advance(end, episodes, due(c, end, truncate=end in self.truncation_steps))
 
-    def after_update(self, run: loop.Loop) -> None:
-        """AdaRL's truncation, at the steps `sac.truncation_steps` gives: a pre-truncation
-        checkpoint (unless restored from it), every bottleneck decomposed and cut (Eq. 5 and the
-        retain clause, `sac.truncate`), truncations.csv and the spectra written, and each lane
-        narrowed to its ranks."""
+    def parameters_finite(self) -> bool:
+        finite = self.gather(lambda lane: _finite_parameters(lane.state))
+        return all(np.all(ok) for ok in finite.values())
+
+    def truncate(self, step: int) -> Truncation:
+        """AdaRL's truncation, at the steps `schedule.truncation_steps` gives: every bottleneck
+        decomposed and cut (Eq. 5 and the retain clause, `sac.truncate`) and each lane narrowed
+        to its ranks; returns the spectra and truncations.csv rows."""
         c = self.config
-        if run.step not in self.truncation_steps:
-            return
-        if c.checkpoint_before_truncation and not self.resumes_mid_step:
-            finite = self.gather(lambda lane: _finite_parameters(lane.state))
-            if all(np.all(ok) for ok in finite.values()) and not run.watch.found:
-                run.save(phase=layout.PRE_TRUNCATION)  # never with non-finite parameters
-        self.resumes_mid_step = False
         old = self.gather(_ranks)
         reports = []
         full = _layer_widths(self.spec)
@@ -432,17 +421,12 @@ class SACLearner:
             reports.append(report)
         report = _concat_lanes(reports)
         spectra = {name: np.asarray(item[0]) for name, item in report.items()}
-        buf = BytesIO()
-        np.savez(buf, seeds=np.asarray(self.seeds), **spectra)
-        atomic_write_bytes(
-            run.run_dir / layout.SPECTRA_DIR / layout.spectrum_file(run.step), buf.getvalue()
-        )
         rows = []
         for name, (_, proposed, new, candidate, error) in report.items():
             for i, seed in enumerate(self.seeds):
                 rows.append(
                     {
-                        "step": run.step,
+                        "step": step,
                         "seed": seed,
                         "layer": name,
                         "old_rank": int(old[name][i]),
@@ -455,10 +439,9 @@ class SACLearner:
                         ),
                     }
                 )
-        log = run.logs[layout.TRUNCATIONS_CSV]
-        log.write([{k: row[k] for k in log.columns} for row in rows])
         if c.compact_bottlenecks:
             self.narrow_bottlenecks(self.gather(_ranks))
+        return Truncation(spectra, rows)
 
     def narrow_bottlenecks(self, ranks: dict) -> None:
         """Store each lane's bottlenecks only as wide as its largest rank (and recompile its
@@ -596,14 +579,3 @@ def _concat_lanes(parts: list):
 def _take(tree, i: int | slice):
     """Seed `i` (or a slice of seeds) of a tree of seed-stacked arrays."""
     return jax.tree_util.tree_map(lambda a: a[i], tree)
-
-
-def train(
-    config: sac_config.SACConfig,
-    run_dir: str | Path,
-    resume: bool = False,
-    progress: bool = True,
-    command: str = "",
-) -> Path:
-    """Train (or resume) a SAC-family run into `run_dir` (`adarl.train.loop.train`)."""
-    return loop.train(SACLearner, config, run_dir, resume, progress, command)

@@ -1,24 +1,37 @@
 """Which learner the one training loop (`adarl.train.loop`) trains each algorithm with: its
-config class -> `train(config, run_dir, resume=False, progress=True, command="")`. Apart from
+config class -> its `Learner` class, and `train`, which trains any config. Apart from
 `adarl.algos.registry` because the learners import JAX and sit a layer above the algorithms; the
 CLI and the sweep worker import this only when they train.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
+from pathlib import Path
 
 from adarl.algos import registry
 from adarl.algos.rnac_config import RNACConfig
 from adarl.algos.sac_config import SACConfig
-from adarl.train import rnac_learner, sac_learner
+from adarl.train import loop
+from adarl.train.learner import Learner
+from adarl.train.rnac_learner import RNACLearner
+from adarl.train.sac_learner import SACLearner
 
-TRAINERS: dict[type, Callable] = {
-    SACConfig: sac_learner.train,
-    RNACConfig: rnac_learner.train,
+LEARNERS: dict[type, Callable[..., Learner]] = {
+    SACConfig: SACLearner,
+    RNACConfig: RNACLearner,
 }
 
 
+def train(
+    config, run_dir: str | Path, resume: bool = False, progress: bool = True, command: str = ""
+) -> Path:
+    """Train (or resume) a run of `config` into `run_dir` with its learner (`loop.train`)."""
+    return loop.train(LEARNERS[type(config)], config, run_dir, resume, progress, command)
+
+
 def trainer(algo: str) -> Callable:
-    """The `train` function of the registry's algorithm `algo`."""
-    return TRAINERS[registry.get(algo).config_class]
+    """`train(config, run_dir, resume, progress, command)` with the learner of the registry's
+    algorithm `algo`."""
+    return functools.partial(loop.train, LEARNERS[registry.get(algo).config_class])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from bottleneck_step import truncate_bottleneck
 
-from adarl.algos import replay, sac, sac_config
+from adarl.algos import replay, sac, sac_config, schedule
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.nets import mlp
 from adarl.nets.regularisers import parseval_penalty
@@ -445,13 +445,17 @@ def test_retain_clause_keeps_the_old_rank_when_a_cut_costs_too_much(adarl_run):
     assert sac.rank_state(loose, accepted) == sac.rank_state(spec, off)
 
 
-@pytest.mark.parametrize("schedule", ["envelope", "restart"])
-def test_learning_rate_follows_the_chosen_schedule(schedule):
+@pytest.mark.parametrize("lr_schedule", ["envelope", "restart"])
+def test_learning_rate_follows_the_chosen_schedule(lr_schedule):
     spec, state = make(
-        "adarl", lr_schedule=schedule, total_steps=21_000, update_after=1_010, truncate_every=5_000
+        "adarl",
+        lr_schedule=lr_schedule,
+        total_steps=21_000,
+        update_after=1_010,
+        truncate_every=5_000,
     )
     c = spec.config
-    assert sac.total_updates(c) == 20_000 and sac.n_truncations(c) == 4
+    assert schedule.total_updates(c) == 20_000 and schedule.n_truncations(c) == 4
     lr = lambda n, start, cuts: float(  # noqa: E731
         sac.learning_rate(
             spec,
@@ -459,7 +463,7 @@ def test_learning_rate_follows_the_chosen_schedule(schedule):
             c.lr_actor,
         )
     )
-    if schedule == "envelope":
+    if lr_schedule == "envelope":
         assert lr(0, 0, 0) == pytest.approx(c.lr_actor)  # the envelope starts at the base rate
         assert lr(10_000, 0, 0) == pytest.approx(
             c.lr_actor * (c.lr_min_ratio + (1 - c.lr_min_ratio) / 2)

@@ -6,7 +6,7 @@ import pytest
 from adarl.algos import sac_config
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.runs.logs import read_csv
-from adarl.train import sac_learner
+from adarl.train import sac_learner, trainers
 
 # adarl runs, crashes and resumes in tests/train/test_sac_learner.py
 ALGOS = {
@@ -49,9 +49,9 @@ def test_runs_and_resumes(algo, tmp_path, monkeypatch):
 
     monkeypatch.setattr(sac_learner.SACLearner, "env_step", crashing)
     with pytest.raises(Crash):
-        sac_learner.train(config, tmp_path / "run", progress=False)
+        trainers.train(config, tmp_path / "run", progress=False)
     monkeypatch.setattr(sac_learner.SACLearner, "env_step", original)
-    sac_learner.train(config, tmp_path / "run", resume=True, progress=False)
+    trainers.train(config, tmp_path / "run", resume=True, progress=False)
     rows = read_csv(tmp_path / "run" / "train.csv")
     assert [int(r["step"]) for r in rows] == [100, 100, 200, 200, 300, 300, 400, 400]
     last = rows[-1]
@@ -84,7 +84,7 @@ def test_runs_with_one_seed(algo, tmp_path):
         "log_every": 100,
         **ALGOS[algo],
     }
-    sac_learner.train(sac_config.SACConfig(**values), tmp_path / "run", progress=False)
+    trainers.train(sac_config.SACConfig(**values), tmp_path / "run", progress=False)
     rows = read_csv(tmp_path / "run" / "train.csv")
     assert [int(r["step"]) for r in rows] == [100, 200]
     assert all(np.isfinite(float(r["loss_q"])) for r in rows)

@@ -148,7 +148,7 @@ def config_for(*argv):
 
 
 def test_adarl_without_a_budget_uses_its_per_task_budget_and_truncates():
-    from adarl.algos import sac
+    from adarl.algos import schedule
 
     for task, steps, d_t, cuts in [
         ("hopper", 3_000_000, 1_000_000, 2),
@@ -158,7 +158,7 @@ def test_adarl_without_a_budget_uses_its_per_task_budget_and_truncates():
     ]:
         config = config_for("--algo", "adarl", "--task", task)
         assert (config.total_steps, config.truncate_every) == (steps, d_t)
-        assert sac.n_truncations(config) == cuts
+        assert schedule.n_truncations(config) == cuts
     # flags and presets sit above the per-task budget; other algorithms keep theirs
     assert config_for("--algo", "adarl", "--total-steps", "500000").total_steps == 500_000
     assert config_for("--algo", "adarl", "--preset", "quickstart").total_steps == 150_000

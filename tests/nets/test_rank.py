@@ -152,20 +152,6 @@ def test_truncation_vmaps_with_per_seed_ranks():
     assert ranks[1] <= 20 and ranks[2] <= 5 and ranks[0] <= 64
 
 
-def test_restart_schedule_boundaries():
-    lr, w, total, m = 3e-3, 2000, 10_000, 0.1
-    f = lambda t: float(rank.restart_learning_rate(t, lr, w, total, m))  # noqa: E731
-    assert f(0) == 0.0
-    assert f(1000) == pytest.approx(lr / 2)
-    assert f(1999) == pytest.approx(lr * 1999 / 2000)
-    assert f(2000) == pytest.approx(lr)  # warm-up ends at the target
-    assert f(6000) == pytest.approx(lr * (m + (1 - m) * 0.5))  # half-way through the cosine
-    assert f(10_000) == pytest.approx(lr * m)  # end of the iteration: the floor
-    assert f(50_000) == pytest.approx(lr * m)
-    values = [f(t) for t in range(2000, 10_001, 500)]
-    assert all(a >= b for a, b in zip(values, values[1:]))  # cosine only decreases
-
-
 def np_energy_rule(sigma, beta):
     """The srank form literally: min{ℓ ∈ 1..d : Σ_{i≤ℓ}σ_i / Σ_i σ_i ≥ β} (d if the set is empty)."""
     total = sigma.sum()
@@ -242,28 +228,6 @@ def test_relative_error_and_retain_clause():
     err = jnp.asarray([0.01, 0.2, jnp.nan])
     np.testing.assert_array_equal(np.asarray(rank.retain_or_cut(old, cand, err, 0.05)), [7, 10, 10])
     np.testing.assert_array_equal(np.asarray(rank.retain_or_cut(old, cand, err, None)), [7, 7, 10])
-
-
-def np_envelope(t, start, base, w, total, m, warm_up):
-    env = lambda x: base * (m + (1 - m) * 0.5 * (1 + np.cos(np.pi * min(1.0, x / total))))  # noqa: E731
-    if warm_up and t - start < w:
-        return env(start + w) * (t - start) / w
-    return env(t)
-
-
-def test_envelope_schedule_matches_relora_reference():
-    base, w, total, m = 3e-3, 2000, 100_000, 0.1
-    for start in (0, 20_000, 61_000):
-        for t in range(start, start + 30_000, 250):
-            for warm_up in (False, True):
-                got = float(rank.envelope_learning_rate(t, start, base, w, total, m, warm_up))
-                assert got == pytest.approx(np_envelope(t, start, base, w, total, m, warm_up))
-    f = lambda t, s: float(rank.envelope_learning_rate(t, s, base, w, total, m, True))  # noqa: E731
-    assert f(20_000, 20_000) == 0.0  # each reset warms up from zero …
-    assert f(22_000, 20_000) == pytest.approx(np_envelope(22_000, 0, base, w, total, m, False))
-    assert f(100_000, 61_000) == pytest.approx(base * m)  # … to one envelope that ends at the floor
-    later = [f(t, 20_000) for t in range(22_000, 100_001, 1000)]
-    assert all(a >= b for a, b in zip(later, later[1:]))
 
 
 def test_svd_under_vmap_is_the_batched_svd_bit_for_bit():

@@ -14,7 +14,7 @@ from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.evaluation import report
 from adarl.runs import provenance
-from adarl.train import rnac_learner, sac_learner
+from adarl.train import rnac_learner, sac_learner, trainers
 
 ROOT = Path(provenance.__file__).resolve().parents[2]
 
@@ -124,7 +124,7 @@ def test_sac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
     )  # stop right after the run is created
     values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
     with pytest.raises(Stop):
-        sac_learner.train(sac_config.SACConfig(**values), tmp_path / "run", progress=False)
+        trainers.train(sac_config.SACConfig(**values), tmp_path / "run", progress=False)
     record = provenance.read_environment(tmp_path / "run")
     assert record["packages"]["jax"] == metadata.version("jax")
 
@@ -134,7 +134,7 @@ def test_rnac_trainer_writes_it_at_creation(tmp_path, monkeypatch):
         rnac_learner.RNACLearner, "fresh", _stop
     )  # stop right after the run is created
     with pytest.raises(Stop):
-        rnac_learner.train(
+        trainers.train(
             rnac_config.RNACConfig(**rnac_config.PRESETS["smoke"]), tmp_path / "run", progress=False
         )
     record = provenance.read_environment(tmp_path / "run")
@@ -206,13 +206,13 @@ def test_the_trainer_records_each_resume_and_the_report_warns(tmp_path, monkeypa
         provenance, "_git_state", lambda: {"git_commit": "a" * 40, "git_dirty": False}
     )
     with pytest.raises(StopTraining):
-        sac_learner.train(config, run, progress=False)
+        trainers.train(config, run, progress=False)
     assert "resumes" not in provenance.read_environment(run)
     monkeypatch.setattr(
         provenance, "_git_state", lambda: {"git_commit": "c" * 40, "git_dirty": False}
     )
     with pytest.raises(StopTraining):
-        sac_learner.train(config, run, resume=True, progress=False)
+        trainers.train(config, run, resume=True, progress=False)
     record = provenance.read_environment(run)
     assert [(r["step"], r["adarl"]["git_commit"]) for r in record["resumes"]] == [(0, "c" * 40)]
 

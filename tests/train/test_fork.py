@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 import yaml
 
-from adarl.algos import sac, sac_config
+from adarl.algos import sac, sac_config, schedule
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.runs import checkpoints
 from adarl.runs.layout import PRE_TRUNCATION, PRE_TRUNCATION_DIR
 from adarl.runs.logs import read_csv
-from adarl.train import fork, sac_learner
+from adarl.train import fork, sac_learner, trainers
 
 CSVS = ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")
 
@@ -60,12 +60,12 @@ def assert_same_arrays(a: dict, b: dict):
 @pytest.fixture(scope="module")
 def parent(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("fork") / "parent"
-    sac_learner.train(tiny(), run_dir, progress=False)
+    trainers.train(tiny(), run_dir, progress=False)
     return run_dir
 
 
 def test_truncation_steps_follow_the_loops_counters():
-    """`sac.truncation_steps` against a step-by-step count of the loop's rules (chunks of
+    """`schedule.truncation_steps` against a step-by-step count of the loop's rules (chunks of
     update_every steps, updates from the chunk that reaches update_after, a truncation once the
     updates since the last one reach d_t)."""
     for total, every, after, d_t in itertools.product(
@@ -89,14 +89,14 @@ def test_truncation_steps_follow_the_loops_counters():
             if since >= d_t:
                 expected.append(step)
                 since = 0
-        assert sac.truncation_steps(config) == expected, (total, every, after, d_t)
-        assert sac.total_updates(config) == updates, (total, every, after, d_t)
-    assert sac.truncation_steps(tiny(algo="sac")) == []
+        assert schedule.truncation_steps(config) == expected, (total, every, after, d_t)
+        assert schedule.total_updates(config) == updates, (total, every, after, d_t)
+    assert schedule.truncation_steps(tiny(algo="sac")) == []
 
 
 def test_adarl_keeps_a_checkpoint_before_every_truncation(parent):
     cuts = sorted({int(r["step"]) for r in read_csv(parent / "truncations.csv")})
-    assert cuts == sac.truncation_steps(tiny()) == [550, 650, 750]
+    assert cuts == schedule.truncation_steps(tiny()) == [550, 650, 750]
     kept = [p.name for p in checkpoints.checkpoint_dirs(parent, PRE_TRUNCATION_DIR)]
     assert kept == [f"step_{s:012d}" for s in cuts]  # none rotated away (keep_checkpoints 1)
     assert [p.name for p in checkpoints.checkpoint_dirs(parent)] == ["step_000000000800"]
@@ -123,7 +123,7 @@ def test_a_fork_without_changes_continues_exactly_as_its_parent(parent, tmp_path
         prefix = [r for r in rows(parent, name) if int(r["step"]) <= last]
         assert rows(child, name) == prefix, name
     assert {r["step"] for r in rows(child, "eval.csv")} == {"400"}
-    sac_learner.train(planned.config, child, resume=True, progress=False)
+    trainers.train(planned.config, child, resume=True, progress=False)
     for name in CSVS:
         assert rows(child, name) == rows(parent, name), name
     assert_same_arrays(final_arrays(child), final_arrays(parent))
@@ -154,9 +154,9 @@ def test_the_forked_control_is_the_control_trained_from_scratch(parent, tmp_path
         "apply_cuts": {"from": True, "to": False},
     }
     fork.write(planned, forked, "")
-    sac_learner.train(planned.config, forked, resume=True, progress=False)
+    trainers.train(planned.config, forked, resume=True, progress=False)
     scratch = tmp_path / "scratch"
-    sac_learner.train(tiny("adarl-control"), scratch, progress=False)
+    trainers.train(tiny("adarl-control"), scratch, progress=False)
     for name in CSVS:
         assert rows(forked, name) == rows(scratch, name), name
     assert_same_arrays(final_arrays(forked), final_arrays(scratch))
@@ -186,7 +186,7 @@ def test_a_fork_ending_at_its_pre_truncation_step_makes_that_one_truncation(pare
     planned = fork.prepare(parent, 650, {"total_steps": "650"})
     assert planned.record["checkpoint"] == "pre_truncation" and planned.config.total_steps == 650
     fork.write(planned, child, "")
-    sac_learner.train(planned.config, child, resume=True, progress=False)
+    trainers.train(planned.config, child, resume=True, progress=False)
     cuts = rows(child, "truncations.csv")
     assert sorted({int(r["step"]) for r in cuts}) == [550, 650]  # 550 inherited, 650 made
     made = [r for r in cuts if r["step"] == "650"]
@@ -269,7 +269,7 @@ def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkey
         tmp_path / "child"
     )
     with pytest.raises(UsageError, match="was interrupted while being made .*: remove it and fork"):
-        sac_learner.train(planned.config, tmp_path / "child", resume=True, progress=False)
+        trainers.train(planned.config, tmp_path / "child", resume=True, progress=False)
 
 
 def test_forkable_fields_are_config_fields_and_the_sweeps_check_agrees():

@@ -23,7 +23,7 @@ from adarl.cli.main import main
 from adarl.runs import checkpoints
 from adarl.runs.layout import LOCK_FILE
 from adarl.runs.logs import read_csv
-from adarl.train import rnac_learner, sac_learner
+from adarl.train import trainers
 
 HOLD = """
 import sys, time
@@ -70,7 +70,7 @@ def sac_run(tmp_path_factory) -> Path:
         **{**values, "seeds": (0, 1), "total_steps": 1000, "checkpoint_every": 500}
     )
     run_dir = tmp_path_factory.mktemp("sac") / "run"
-    sac_learner.train(config, run_dir, progress=False)
+    trainers.train(config, run_dir, progress=False)
     assert [p.name for p in checkpoints.checkpoint_dirs(run_dir)] == [
         "step_000000000500",
         "step_000000001000",
@@ -288,7 +288,7 @@ def test_rnac_falls_back_to_an_older_checkpoint_and_resumes_exactly(tmp_path, ca
         **{**rnac_config.PRESETS["smoke"], "total_steps": 512, "checkpoint_every": 256}
     )
     base = tmp_path / "base"
-    rnac_learner.train(config, base)
+    trainers.train(config, base)
     run_dir = unfinished_copy(base, tmp_path / "run")
     newest = checkpoints.checkpoint_dirs(run_dir)[-1] / "arrays.npz"
     data = bytearray(newest.read_bytes())

@@ -14,7 +14,7 @@ from adarl.algos import rnac_config, sac_config
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import Diverged
 from adarl.runs import checkpoints
-from adarl.train import rnac_learner, sac_learner
+from adarl.train import rnac_learner, sac_learner, trainers
 
 
 def poison_one(tree, value, seed_position: int = 0):
@@ -63,19 +63,20 @@ def test_sac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     values.update(log_every=400, eval_every=400, checkpoint_every=100)  # one log point: the end
     config = sac_config.SACConfig(**values)
     poison, words = SAC_POISON[what]
-    original = sac_learner.SACLearner.after_update
+    original = sac_learner.SACLearner.advance
 
-    def then_poison(self, run):
-        original(self, run)
-        if run.step == 300:  # after the update of the chunk ending at 300, before its checkpoint
+    def then_poison(self, step):
+        advance = original(self, step)
+        if advance.step == 300:  # after the update of the chunk ending at 300, before its save
             lane = self.lanes[-1]  # seed 1 (one lane per seed)
             assert [self.seeds[i] for i in lane.seeds] == [1]
             lane.state = poison(lane.state)
+        return advance
 
-    monkeypatch.setattr(sac_learner.SACLearner, "after_update", then_poison)
+    monkeypatch.setattr(sac_learner.SACLearner, "advance", then_poison)
     run_dir = tmp_path / "run"
     with pytest.raises(Diverged) as err:
-        sac_learner.train(config, run_dir, progress=False)
+        trainers.train(config, run_dir, progress=False)
     message = str(err.value)
     assert "diverged at step 300" in message and f"{words} (seed 1)" in message, message
     assert "last good checkpoint step_000000000200" in message, message
@@ -122,7 +123,7 @@ def test_rnac_state_gone_non_finite_between_log_points_is_never_checkpointed(
     monkeypatch.setattr(rnac_learner, "make_update", make_update)
     run_dir = tmp_path / "run"
     with pytest.raises(Diverged) as err:
-        rnac_learner.train(config, run_dir, progress=False)
+        trainers.train(config, run_dir, progress=False)
     message = str(err.value)
     assert "diverged at step 768" in message and f"{words} (seed 1)" in message, message
     assert "last good checkpoint step_000000000512" in message, message

@@ -11,7 +11,7 @@ from adarl.algos.sac_config import SAC_FAMILY
 from adarl.policy import to_bytes
 from adarl.runs import checkpoints
 from adarl.runs.logs import read_csv
-from adarl.train import loop, rnac_learner, sac_learner
+from adarl.train import loop, trainers
 
 
 def smoke_sac(**overrides):
@@ -23,13 +23,13 @@ def smoke_sac(**overrides):
 # and eval_every, and the last step, which is neither
 CASES = {
     "sac": (
-        sac_learner.train,
+        trainers.train,
         smoke_sac(seeds=(0, 1), total_steps=1_050, log_every=500, eval_every=500),
         [500, 1_000, 1_050],
         [500, 1_000, 1_050],
     ),
     "rnac": (
-        rnac_learner.train,
+        trainers.train,
         rnac_config.RNACConfig(
             **rnac_config.PRESETS["smoke"]
             | {"seeds": (0, 1), "total_steps": 1_280, "log_every": 512, "eval_every": 1_024}

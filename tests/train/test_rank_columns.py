@@ -13,7 +13,7 @@ import pytest
 from adarl.algos import sac_config
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.runs.logs import read_csv
-from adarl.train import sac_learner
+from adarl.train import sac_learner, trainers
 
 
 def smoke_config(**overrides):
@@ -71,7 +71,7 @@ def test_a_seeds_rank_changes_only_at_its_truncations(lanes, tmp_path):
         log_every=50, eval_every=900, checkpoint_every=900, lanes=lanes,
     )  # fmt: skip
     run_dir = tmp_path / "run"
-    sac_learner.train(config, run_dir, progress=False)
+    trainers.train(config, run_dir, progress=False)
     cuts = read_csv(run_dir / "truncations.csv")
     steps = expected_truncation_steps(config)
     assert steps == [550, 650, 750, 850]
@@ -121,7 +121,7 @@ def test_a_rule_that_proposes_no_cut_is_logged_unchanged(tmp_path):
         seeds=(0,), rank_rule="ratio", beta=1e-9, truncate_every=100, total_steps=550,
         log_every=550, eval_every=550, checkpoint_every=550,
     )  # fmt: skip
-    sac_learner.train(config, tmp_path / "run", progress=False)
+    trainers.train(config, tmp_path / "run", progress=False)
     cuts = read_csv(tmp_path / "run" / "truncations.csv")
     assert len(cuts) == 3 and {r["step"] for r in cuts} == {"550"}
     width = str(config.hidden[0])

@@ -21,7 +21,7 @@ from adarl.cli.main import main
 from adarl.runs import checkpoints, logs
 from adarl.runs.layout import LOCK_FILE
 from adarl.runs.logs import read_csv
-from adarl.train import sac_learner
+from adarl.train import trainers
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def sac_run(tmp_path_factory) -> Path:
         }  # fmt: skip
     )
     run_dir = tmp_path_factory.mktemp("sac") / "run"
-    sac_learner.train(config, run_dir, progress=False)
+    trainers.train(config, run_dir, progress=False)
     return run_dir
 
 

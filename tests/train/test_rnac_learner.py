@@ -13,7 +13,7 @@ import pytest
 from adarl.algos import rnac, rnac_config
 from adarl.errors import UsageError
 from adarl.runs.logs import read_csv
-from adarl.train import rnac_learner
+from adarl.train import rnac_learner, trainers
 
 
 # ----------------------------------------------------------------------------- double sampling
@@ -68,7 +68,7 @@ def _rows(run, name, seed=None):
 def test_run_checkpoint_and_exact_resume(tmp_path):
     config = _config(seeds=(0, 1))
     full = tmp_path / "full"
-    rnac_learner.train(config, full)
+    trainers.train(config, full)
     assert (full / "DONE").read_text().strip() == "1024"
     ckpts = sorted(p.name for p in (full / "checkpoints").iterdir())
     assert ckpts == ["step_000000000640", "step_000000001024"]
@@ -93,7 +93,7 @@ def test_run_checkpoint_and_exact_resume(tmp_path):
     policy = load(full / "checkpoints/step_000000001024/policy_seed_1.npz")
     np.testing.assert_allclose(policy(obs), expected, rtol=1e-5, atol=1e-6)
     before = (full / "train.csv").read_bytes()
-    rnac_learner.train(config, full, resume=True)  # a finished run: nothing to do
+    trainers.train(config, full, resume=True)  # a finished run: nothing to do
     assert (full / "train.csv").read_bytes() == before
 
     # kill after the first checkpoint: later checkpoint, DONE and half a CSV line are lost
@@ -104,7 +104,7 @@ def test_run_checkpoint_and_exact_resume(tmp_path):
     with open(cut / "episodes.csv", "a") as f:
         f.write("1000,0,99,12.")
     # resumed with candidates simulated at every step (the original's way): same transitions
-    rnac_learner.train(dataclasses.replace(config, eager_candidates=True), cut, resume=True)
+    trainers.train(dataclasses.replace(config, eager_candidates=True), cut, resume=True)
     for name in ("episodes", "train", "eval"):
         assert _rows(cut, name) == _rows(full, name), name
     with (
@@ -143,7 +143,7 @@ def test_best_checkpoint_is_kept_and_resume_exact(tmp_path):
         "checkpoints/step_000000001024",
         "checkpoints/step_000000000640",
     )
-    rnac_learner.train(config, full, progress=False)
+    trainers.train(config, full, progress=False)
     record = _best(full / last)
     assert record["metric"] == "mean nominal evaluation return"
     assert _best(full / first)["seeds"].keys() == {"0", "1"}  # from the evaluation at 512
@@ -168,7 +168,7 @@ def test_best_checkpoint_is_kept_and_resume_exact(tmp_path):
     (cut / "DONE").unlink()
     forged = tmp_path / "forged"
     shutil.copytree(cut, forged)
-    rnac_learner.train(config, cut, resume=True, progress=False)
+    trainers.train(config, cut, resume=True, progress=False)
     assert _best(cut / last) == record
     for s in (0, 1):
         a = _policy_arrays(full / last / f"best_policy_seed_{s}.npz")
@@ -181,7 +181,7 @@ def test_best_checkpoint_is_kept_and_resume_exact(tmp_path):
     meta = json.loads((forged / first / "meta.json").read_text())
     meta["best"]["seeds"]["0"]["return"] = 1e9
     (forged / first / "meta.json").write_text(json.dumps(meta))
-    rnac_learner.train(config, forged, resume=True, progress=False)
+    trainers.train(config, forged, resume=True, progress=False)
     assert _best(forged / last)["seeds"]["0"] == {"step": 512, "return": 1e9}
     assert _best(forged / last)["seeds"]["1"] == record["seeds"]["1"]
     kept = _policy_arrays(forged / last / "best_policy_seed_0.npz")
@@ -194,16 +194,16 @@ def test_best_checkpoint_is_kept_and_resume_exact(tmp_path):
     shutil.rmtree(forged / last)
     (forged / first / "best_policy_seed_1.npz").unlink()
     with pytest.raises(UsageError, match="has no intact checkpoint") as err:
-        rnac_learner.train(config, forged, resume=True, progress=False)
+        trainers.train(config, forged, resume=True, progress=False)
     assert "\n" not in str(err.value)
 
 
 def test_ipm_run_and_seed_grouping(tmp_path):
     """IPM trains too; a seed trained alone logs what it logs when trained with others."""
     alone = tmp_path / "alone"
-    rnac_learner.train(_config(seeds=(1,), uncertainty_set="ipm", total_steps=512), alone)
+    trainers.train(_config(seeds=(1,), uncertainty_set="ipm", total_steps=512), alone)
     group = tmp_path / "group"
-    rnac_learner.train(_config(seeds=(0, 1), uncertainty_set="ipm", total_steps=512), group)
+    trainers.train(_config(seeds=(0, 1), uncertainty_set="ipm", total_steps=512), group)
     import yaml
 
     doc = yaml.safe_load((group / "config.yaml").read_text())
@@ -215,11 +215,11 @@ def test_ipm_run_and_seed_grouping(tmp_path):
 # ----------------------------------------------------------------------------- bad input
 def test_bad_run_folder(tmp_path):
     with pytest.raises(UsageError, match="not a run folder"):
-        rnac_learner.train(_config(), tmp_path / "missing", resume=True)
+        trainers.train(_config(), tmp_path / "missing", resume=True)
     (tmp_path / "used").mkdir()
     (tmp_path / "used" / "notes.txt").write_text("mine\n")
     with pytest.raises(UsageError, match="not empty"):
-        rnac_learner.train(_config(), tmp_path / "used")
+        trainers.train(_config(), tmp_path / "used")
     assert (tmp_path / "used" / "notes.txt").read_text() == "mine\n"
     with pytest.raises(UsageError):
-        rnac_learner.train(_config(task="cartpole"), tmp_path / "new")
+        trainers.train(_config(task="cartpole"), tmp_path / "new")

@@ -12,12 +12,12 @@ import jax
 import numpy as np
 import pytest
 
-from adarl.algos import sac, sac_config
+from adarl.algos import sac, sac_config, schedule
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
 from adarl.runs import checkpoints
 from adarl.runs.logs import read_csv
-from adarl.train import sac_learner
+from adarl.train import sac_learner, trainers
 
 
 def smoke_config(algo="adarl", **overrides):
@@ -54,7 +54,7 @@ def test_pendulum_learns_for_every_seed(tmp_path):
         log_every=2_000,
         checkpoint_every=10_000,
     )
-    sac_learner.train(config, tmp_path / "run", progress=False)
+    trainers.train(config, tmp_path / "run", progress=False)
     rows = read_csv(tmp_path / "run" / "eval.csv")
     for seed in (0, 1):
         returns = [float(r["return"]) for r in rows if int(r["seed"]) == seed]
@@ -79,9 +79,9 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
     config = smoke_config(
         seeds=(0, 1, 2), total_steps=2_000, checkpoint_every=1_000, **rank_settings
     )
-    sac_learner.train(config, tmp_path / "full", progress=False)
+    trainers.train(config, tmp_path / "full", progress=False)
     cuts = read_csv(tmp_path / "full" / "truncations.csv")
-    assert len(cuts) == sac.n_truncations(config) * 3 * 3  # truncations × layers × seeds
+    assert len(cuts) == schedule.n_truncations(config) * 3 * 3  # truncations × layers × seeds
     decisions = {row["decision"] for row in cuts}
     assert decisions <= {"accepted", "retained", "unchanged"}
     if "retain_tolerance" in rank_settings:  # the retain clause refuses some of the cuts
@@ -96,10 +96,10 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
 
     monkeypatch.setattr(sac_learner.SACLearner, "env_step", crashing)
     with pytest.raises(Crash):
-        sac_learner.train(config, tmp_path / "crashed", progress=False)
+        trainers.train(config, tmp_path / "crashed", progress=False)
     monkeypatch.setattr(sac_learner.SACLearner, "env_step", original)
     assert not (tmp_path / "crashed" / "DONE").exists()
-    sac_learner.train(config, tmp_path / "crashed", resume=True, progress=False)
+    trainers.train(config, tmp_path / "crashed", resume=True, progress=False)
 
     for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv"):
         assert csv_rows(tmp_path / "full", name) == csv_rows(tmp_path / "crashed", name), name
@@ -145,10 +145,10 @@ def test_a_seed_gives_the_same_bits_alone_and_among_other_seeds(tmp_path):
     seed): seed 3 trained alone and trained beside 0, 5 and 6 (whose ranks, and so bottleneck
     widths, differ from its own after the truncations) are bit-identical."""
     config = smoke_config(total_steps=1_500, checkpoint_every=500, rank_rule="cumulative")
-    sac_learner.train(
+    trainers.train(
         dataclasses.replace(config, seeds=(0, 3, 5, 6)), tmp_path / "all", progress=False
     )
-    sac_learner.train(dataclasses.replace(config, seeds=(3,)), tmp_path / "alone", progress=False)
+    trainers.train(dataclasses.replace(config, seeds=(3,)), tmp_path / "alone", progress=False)
     together, alone = tmp_path / "all", tmp_path / "alone"
     for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv"):
         assert seed_rows(together, name, 3) == seed_rows(alone, name, 3), name
@@ -190,7 +190,7 @@ def test_new_run_refuses_a_non_empty_folder(tmp_path):
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "notes.txt").write_text("keep me")
     with pytest.raises(UsageError, match="already exists"):
-        sac_learner.train(smoke_config(), tmp_path / "run", progress=False)
+        trainers.train(smoke_config(), tmp_path / "run", progress=False)
     assert (tmp_path / "run" / "notes.txt").read_text() == "keep me"
 
 
@@ -258,7 +258,7 @@ def test_checkpoint_holds_only_the_used_part_of_the_buffer(tmp_path):
     config = smoke_config(
         algo="sac", total_steps=1_000, checkpoint_every=1_000, buffer_size=100_000
     )
-    sac_learner.train(config, tmp_path / "run", progress=False)
+    trainers.train(config, tmp_path / "run", progress=False)
     arrays = final_arrays(tmp_path / "run")
     # the rows written (1000 steps, plus one row per episode end) and the provisional next row
     used = int(arrays["buffer/size"].max()) + 1
