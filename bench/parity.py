@@ -194,7 +194,7 @@ def env_kwargs(c: dict) -> dict:
     return {
         "max_episode_steps": c["max_episode_steps"],
         "physics": c["physics"],
-        "version": c["model_version"],
+        "model_version": c["model_version"],
     }
 
 

@@ -102,8 +102,21 @@ def test_presets_expand_to_the_documented_protocols():
         "physics-power",
         "fixed-rank-power",
         "claim2-first-look",
+        "table1-ant-humanoid",
     }
     assert len(units["physics"]) == 8  # 2 tasks x physics consistent/ompo x models v5/v4
+    # issue 34's pre-registered Table 1 on Ant and Humanoid: every method of the Hopper table,
+    # 5 seeds, 300k steps, d_t = 60k (the paper's budget/d_t ratio), no pre-truncation copies
+    ant_humanoid = units["table1-ant-humanoid"]
+    assert len(ant_humanoid) == 14
+    assert {u.task for u in ant_humanoid} == {"ant", "humanoid"}
+    assert all(u.seeds == (0, 1, 2, 3, 4) for u in ant_humanoid)
+    for u in ant_humanoid:
+        flags = _flags(u)
+        assert flags["--total-steps"] == "300000" and flags["--dynamics"] == "paper"
+        if u.algo != "rnac":
+            assert flags["--truncate-every"] == "60000"
+            assert flags["--checkpoint-before-truncation"] == "false"
     table1 = units["paper-table1"]
     assert len(table1) == 28  # Parseval at each of the paper's three coefficients
     assert {(u.task, u.algo) for u in table1} == {
