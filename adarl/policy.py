@@ -1,8 +1,9 @@
 """Deterministic policies as plain arrays, runnable with NumPy alone (no JAX).
 
 Every algorithm writes its policy in this format next to each checkpoint
-(`checkpoints/step_*/policy_seed_<s>.npz`); `adarl export` copies one out and evaluation loads
-them in worker processes. Usage::
+(`checkpoints/step_*/policy_seed_<s>.npz`) through `file_arrays`, the one writer, beside the
+one reader `NumpyPolicy`; `adarl export` copies one out and evaluation loads them in worker
+processes. Usage::
 
     from adarl.policy import load
     act = load("policy.npz")
@@ -135,6 +136,44 @@ class NumpyPolicy:
 def sparse_coding_step(x: np.ndarray, d: np.ndarray, eta: float, lam: float) -> np.ndarray:
     """One ISTA step from z₀ = x: ReLU(x + η(Dᵀx − DᵀDx) − ηλ), rows of `x` as samples."""
     return np.maximum(x + eta * (x @ d - (x @ d.T) @ d) - eta * lam, 0.0)
+
+
+def file_arrays(
+    layers: list[tuple],
+    mean: tuple,
+    low,
+    high,
+    activation: str,
+    *,
+    log_std: tuple | None = None,
+    obs_norm: tuple | None = None,
+    n_params_full: bool = False,
+) -> dict[str, np.ndarray]:
+    """The arrays of a policy file (the format above); every algorithm's policy is written by
+    this function. `layers`: the trunk, each layer as `NumpyPolicy` reads it back,
+    ("dense", w, b), ("bottleneck", w1, w2, b) or ("sparse", d, eta, lam); `mean` and `log_std`:
+    the heads' (w, b); `obs_norm`: (mean, var, clip) of the observation normaliser; squash
+    "tanh"; `n_params_full`: also record the parameter count at full rank."""
+    out = {
+        "format": np.asarray(FORMAT),
+        "activation": np.asarray(activation),
+        "n_layers": np.asarray(len(layers)),
+        "squash": np.asarray("tanh"),
+        "action_low": np.asarray(low, np.float32),
+        "action_high": np.asarray(high, np.float32),
+    }
+    names = {"dense": ("w", "b"), "bottleneck": ("w1", "w2", "b"), "sparse": ("d", "eta", "lam")}
+    for i, (kind, *values) in enumerate(layers):
+        out[f"l{i}_kind"] = np.asarray(kind)
+        out.update({f"l{i}_{n}": np.asarray(v) for n, v in zip(names[kind], values, strict=True)})
+    out["mean_w"], out["mean_b"] = np.asarray(mean[0]), np.asarray(mean[1])
+    if log_std is not None:
+        out["log_std_w"], out["log_std_b"] = np.asarray(log_std[0]), np.asarray(log_std[1])
+    if obs_norm is not None:
+        out["obs_mean"], out["obs_var"], out["obs_clip"] = (np.asarray(x) for x in obs_norm)
+    if n_params_full:
+        out["n_params_full"] = np.asarray(NumpyPolicy(out).n_params_full())
+    return out
 
 
 def to_bytes(arrays: dict[str, np.ndarray]) -> bytes:

@@ -30,7 +30,7 @@ from adarl.algos.sac_config import SACConfig
 from adarl.nets import mlp, rank
 from adarl.nets.gaussian import gaussian_log_prob
 from adarl.nets.regularisers import parseval_penalty
-from adarl.policy import LOG_STD_MAX, LOG_STD_MIN, NumpyPolicy
+from adarl.policy import LOG_STD_MAX, LOG_STD_MIN, file_arrays
 
 
 # ============================================================================ networks
@@ -540,29 +540,23 @@ def export_policy(
     adds the log-std head, which the trainer's host-side exploration (`NumpyPolicy.sample`)
     reads."""
     c = spec.config
-    out = {
-        "format": np.array("adarl-policy-1"),
-        "activation": np.array(c.activation),
-        "n_layers": np.array(len(spec.actor)),
-        "squash": np.array("tanh"),
-        "action_low": np.asarray(spec.act_low, np.float32),
-        "action_high": np.asarray(spec.act_high, np.float32),
-    }
+    layers = []
     for i, (layer, p) in enumerate(zip(spec.actor, actor["trunk"])):
         p = {k: np.asarray(v) for k, v in p.items()}
-        out[f"l{i}_kind"] = np.array(layer[0])
         if layer[0] == "dense":
-            out[f"l{i}_w"], out[f"l{i}_b"] = p["w"], p["b"]
+            layers.append(("dense", p["w"], p["b"]))
         elif layer[0] == "bottleneck":
             r = int(np.asarray(masks[i]).sum())
-            out[f"l{i}_w1"], out[f"l{i}_w2"], out[f"l{i}_b"] = p["w1"][:, :r], p["w2"][:r], p["b"]
+            layers.append(("bottleneck", p["w1"][:, :r], p["w2"][:r], p["b"]))
         else:
-            out[f"l{i}_d"] = p["d"]
-            out[f"l{i}_eta"], out[f"l{i}_lam"] = np.array(c.sparse_eta), np.array(c.sparse_lambda)
-    out["mean_w"] = np.asarray(actor["mu"]["w"])
-    out["mean_b"] = np.asarray(actor["mu"]["b"])
-    if log_std:
-        out["log_std_w"] = np.asarray(actor["log_std"]["w"])
-        out["log_std_b"] = np.asarray(actor["log_std"]["b"])
-    out["n_params_full"] = np.array(NumpyPolicy(out).n_params_full())
-    return out
+            layers.append(("sparse", p["d"], c.sparse_eta, c.sparse_lambda))
+    head = actor["log_std"] if log_std else None
+    return file_arrays(
+        layers,
+        (actor["mu"]["w"], actor["mu"]["b"]),
+        spec.act_low,
+        spec.act_high,
+        c.activation,
+        log_std=None if head is None else (head["w"], head["b"]),
+        n_params_full=True,
+    )
