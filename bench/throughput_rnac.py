@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adarl.algos import rnac, rnac_config
+from adarl.algos import onpolicy, rnac, rnac_config
 from adarl.runs.layout import EPISODES_CSV
 from adarl.runs.logs import read_csv
 from adarl.train import rnac_learner, trainers
@@ -71,7 +71,7 @@ def candidate_cost(task: str, steps: int, n: int = 2) -> tuple[float, float]:
     config = rnac_config.RNACConfig()
     obs_dim, act_dim = env.observation_space.shape[0], env.action_space.shape[0]
     state, _ = rnac.init_states([0], config, obs_dim, act_dim)
-    critic = rnac.host_params(state)[0][1]
+    critic = onpolicy.host_params(state.actor, state.critic)[0][1]
     rng = np.random.default_rng(0)
     low, high = env.action_space.low, env.action_space.high
     env.reset()
@@ -80,7 +80,7 @@ def candidate_cost(task: str, steps: int, n: int = 2) -> tuple[float, float]:
         actions = rng.uniform(low, high, (n, low.size)).astype(np.float32)
         start = time.perf_counter()
         cand = shadow.candidates(actions)
-        rnac.critic_value(critic, rnac.normalise_obs(cand, 0.0, 1.0, 10.0), np)
+        onpolicy.critic_value(critic, onpolicy.normalise_obs(cand, 0.0, 1.0, 10.0), np)
         middle = time.perf_counter()
         _, _, terminated, truncated, _ = env.step(actions[0])
         t_cand += middle - start

@@ -12,12 +12,12 @@ Follows the public PPO-based trainer (github.com/tliu1997/RNAC, `train_rnac.py`,
 * ``ipm`` (integral probability metric): every TD residual subtracts `weight_reg`·‖θ_V‖₂, the
   norm of all critic weights and all biases but the last.
 
-Reads top to bottom: networks; the maths as pure functions (GAE, clipped objective, IPM norm,
-worst-case selection); the jitted update (epochs × minibatches in `lax.scan`, vmapped over
-seeds); running normalisers; the policy export. The config and presets are
-`adarl.algos.rnac_config`; its learner (the double-sampling simulator, the host state) is
-`adarl.train.rnac_learner`, trained by the one loop `adarl.train.loop` (logs, evaluation,
-checkpoints).
+Its networks, GAE, PPO's clipped objective, normalisers and host state are the on-policy
+parts every such algorithm shares (`adarl.algos.onpolicy`). Reads top to bottom: RNAC's maths
+as pure functions (IPM norm, worst-case selection); the jitted update (epochs × minibatches in
+`lax.scan`, vmapped over seeds). The config and presets are `adarl.algos.rnac_config`; its
+learner (the double-sampling simulator) is `adarl.train.rnac_learner`, trained by the one loop
+`adarl.train.loop` (logs, evaluation, checkpoints).
 Deviations from the original are listed in docs/rnac.md.
 """
 
@@ -30,9 +30,17 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from adarl.algos.onpolicy import (
+    actor_mean,
+    critic_value,
+    gae,
+    init_actor,
+    init_critic,
+    ppo_clip_objective,
+)
 from adarl.algos.rnac_config import RNACConfig
 from adarl.nets.gaussian import gaussian_entropy, gaussian_log_prob
-from adarl.nets.mlp import make_layout, n_params, orthogonal
+from adarl.nets.mlp import make_layout, n_params
 
 TRAIN_COLUMNS = [
     "step",
@@ -48,90 +56,7 @@ TRAIN_COLUMNS = [
 METRICS = TRAIN_COLUMNS[3:]  # what an update reports, in this order
 
 
-# ============================================================================ networks
-# Parameters are plain pytrees; weights are stored (in, out) so a layer is x @ w + b.
-# Initialisation runs in NumPy: XLA's QR takes tens of seconds to compile on our CPUs.
-def init_dense(rng: np.random.Generator, n_in: int, n_out: int, gain: float) -> dict:
-    """Orthogonal weights with `gain`, zero bias (the original's trick 8)."""
-    return {"w": orthogonal(rng, (n_in, n_out), gain), "b": np.zeros(n_out, np.float32)}
-
-
-def init_actor(rng, obs_dim: int, act_dim: int, hidden: tuple[int, ...], log_std: float) -> dict:
-    """Gaussian actor: tanh trunk (gain 1), mean head (gain 0.01), state-independent log-std."""
-    sizes = [obs_dim, *hidden]
-    return {
-        "trunk": [init_dense(rng, sizes[i], sizes[i + 1], 1.0) for i in range(len(hidden))],
-        "mean": init_dense(rng, sizes[-1], act_dim, 0.01),
-        "log_std": np.full(act_dim, log_std, np.float32),
-    }
-
-
-def init_critic(rng, obs_dim: int, hidden: tuple[int, ...]) -> dict:
-    """State-value critic: tanh trunk and a linear output, all orthogonal with gain 1."""
-    sizes = [obs_dim, *hidden]
-    return {
-        "trunk": [init_dense(rng, sizes[i], sizes[i + 1], 1.0) for i in range(len(hidden))],
-        "out": init_dense(rng, sizes[-1], 1, 1.0),
-    }
-
-
-def _trunk(layers: list[dict], x, xp=jnp):
-    for layer in layers:
-        x = xp.tanh(x @ layer["w"] + layer["b"])
-    return x
-
-
-# The forward functions take `xp` (jax.numpy or numpy): the update runs them in JAX, the rollout
-# in NumPy on a host copy of the parameters (they are constant during a rollout, and a NumPy
-# forward of a 64-64 net costs ~10 µs where a jitted call costs ~200 µs on our CPUs).
-def actor_mean(actor: dict, obs, low, high, xp=jnp):
-    """Mean action c + h·tanh(z): the original's max_action·tanh(mean_layer(h)), for any bounds."""
-    z = _trunk(actor["trunk"], obs, xp) @ actor["mean"]["w"] + actor["mean"]["b"]
-    return (high + low) / 2 + (high - low) / 2 * xp.tanh(z)
-
-
-def critic_value(critic: dict, obs, xp=jnp):
-    """V(s), shape obs.shape[:-1]."""
-    return (_trunk(critic["trunk"], obs, xp) @ critic["out"]["w"] + critic["out"]["b"])[..., 0]
-
-
-def sample_action(actor: dict, obs: np.ndarray, rng: np.random.Generator, low, high):
-    """One rollout action (NumPy): a ~ N(μ(s), σ²) clipped to the bounds, and the log-probability
-    of the clipped action, as the original (float32 throughout, like the networks)."""
-    mean = actor_mean(actor, obs, low, high, np)
-    eps = rng.standard_normal(mean.shape).astype(np.float32)
-    a = clip(mean + np.exp(actor["log_std"]) * eps, low, high).astype(np.float32)
-    return a, float(gaussian_log_prob(a, mean, actor["log_std"], np))
-
-
 # ============================================================================ the maths
-def gae(rewards, values, next_values, terminated, done, gamma: float, lam: float, penalty=0.0):
-    """Generalised advantage estimation (Schulman et al. 2016, eq. 16) with the IPM residual.
-
-    δ_t = r_t + γ(1 − term_t)·V(s'_t) − V(s_t) − penalty            (RNAC, IPM TD residual)
-    A_t = δ_t + γλ(1 − done_t)·A_{t+1},   A after the last step = 0
-    Returns (A, A + V(s)), the advantages and the critic's regression targets. `terminated` marks
-    a true end (no bootstrap), `done` any episode end (terminated or truncated), as in the
-    original's `dw` and `done`. All arguments are 1-D over time except the scalars.
-    """
-    deltas = rewards + gamma * (1.0 - terminated) * next_values - values - penalty
-
-    def backward(carry, x):
-        delta, d = x
-        carry = delta + gamma * lam * (1.0 - d) * carry
-        return carry, carry
-
-    _, adv = jax.lax.scan(backward, jnp.zeros((), deltas.dtype), (deltas, done), reverse=True)
-    return adv, adv + values
-
-
-def ppo_clip_objective(logp_new, logp_old, adv, clip_eps: float):
-    """PPO's clipped surrogate (Schulman et al. 2017, eq. 7), per sample, to be maximised:
-    min(ρ·A, clip(ρ, 1 − ε, 1 + ε)·A) with ρ = exp(log π_new − log π_old)."""
-    ratio = jnp.exp(logp_new - logp_old)
-    return jnp.minimum(ratio * adv, jnp.clip(ratio, 1.0 - clip_eps, 1.0 + clip_eps) * adv)
-
-
 def ipm_norm(critic: dict):
     """‖θ_V‖₂ of RNAC's IPM uncertainty set (`reg_norm` in the original's update): the
     Euclidean norm of all critic weights and of all biases except the output layer's."""
@@ -306,62 +231,3 @@ def _make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
         return state, jnp.stack([metrics[k] for k in METRICS]), key
 
     return jax.jit(jax.vmap(update, in_axes=(0, 0, 0, None, None)))
-
-
-def host_params(state: TrainState) -> list[tuple[dict, dict]]:
-    """Per-seed NumPy copies of (actor, critic) for the rollout."""
-    actor, critic = jax.device_get((state.actor, state.critic))
-    n = len(actor["log_std"])
-    return [jax.tree.map(lambda x, i=i: np.asarray(x[i]), (actor, critic)) for i in range(n)]
-
-
-# ============================================================================ normalisers
-def welford(count, mean, m2, x):
-    """One step of Welford's running mean/variance (the original's RunningMeanStd);
-    the variance is m2 / count."""
-    count = count + 1
-    delta = x - mean
-    mean = mean + delta / count
-    return count, mean, m2 + delta * (x - mean)
-
-
-def normalise_obs(obs, mean, var, obs_clip: float) -> np.ndarray:
-    """clip((o − m)/√(v + 1e-8), ±clip): the adarl policy-file formula, used in training too."""
-    return clip((obs - mean) / np.sqrt(var + 1e-8), -obs_clip, obs_clip).astype(np.float32)
-
-
-def clip(x, low, high):
-    """np.clip without its dispatch overhead (a few µs per call, several calls per step)."""
-    return np.minimum(np.maximum(x, low), high)
-
-
-# ============================================================================ policy export
-def policy_arrays(actor: dict, obs_mean, obs_var, obs_clip: float, low, high) -> dict:
-    """One seed's deterministic policy in the adarl.policy format (tanh trunk, c + h·tanh mean)."""
-    arrays = {
-        "format": np.asarray("adarl-policy-1"),
-        "activation": np.asarray("tanh"),
-        "n_layers": np.asarray(len(actor["trunk"])),
-        "squash": np.asarray("tanh"),
-        "mean_w": np.asarray(actor["mean"]["w"]),
-        "mean_b": np.asarray(actor["mean"]["b"]),
-        "action_low": np.asarray(low, np.float32),
-        "action_high": np.asarray(high, np.float32),
-    }
-    for i, layer in enumerate(actor["trunk"]):
-        arrays.update(
-            {
-                f"l{i}_kind": np.asarray("dense"),
-                f"l{i}_w": np.asarray(layer["w"]),
-                f"l{i}_b": np.asarray(layer["b"]),
-            }
-        )
-    if obs_mean is not None:
-        arrays.update(
-            {
-                "obs_mean": np.asarray(obs_mean),
-                "obs_var": np.asarray(obs_var),
-                "obs_clip": np.asarray(obs_clip),
-            }
-        )
-    return arrays

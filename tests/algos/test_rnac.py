@@ -1,5 +1,5 @@
-"""RNAC's maths (adarl.algos.rnac) against NumPy references, and bad configs (the loop:
-tests/train/test_rnac_learner.py)."""
+"""RNAC's maths (adarl.algos.rnac) against NumPy references, and bad configs (the shared
+on-policy parts: tests/algos/test_onpolicy.py; the learner: tests/train/test_rnac_learner.py)."""
 
 from __future__ import annotations
 
@@ -10,61 +10,17 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from adarl.algos import rnac, rnac_config
+from adarl.algos import onpolicy, rnac, rnac_config
 from adarl.errors import UsageError
 
 # jitted once: eager JAX compiles every primitive separately, which is slow on 2 shared cores
-gae = jax.jit(rnac.gae)
+gae = jax.jit(onpolicy.gae)
 ipm_norm = jax.jit(rnac.ipm_norm)
 
 
 # ----------------------------------------------------------------------------- the maths
-def gae_reference(r, v, v_next, dw, done, gamma, lam, penalty=0.0):
-    """The original's loop (ppo_continuous.py, PPO_continuous.update)."""
-    deltas = r + gamma * (1.0 - dw) * v_next - v - penalty
-    adv, g = [], 0.0
-    for delta, d in zip(deltas[::-1], done[::-1]):
-        g = delta + gamma * lam * g * (1.0 - d)
-        adv.insert(0, g)
-    adv = np.array(adv)
-    return adv, adv + v
-
-
-@pytest.mark.parametrize("penalty", [0.0, 0.3])
-def test_gae_matches_numpy_reference(penalty):
-    rng = np.random.default_rng(0)
-    n = 257
-    r, v, v_next = (rng.standard_normal(n) for _ in range(3))
-    done = (rng.random(n) < 0.05).astype(float)
-    dw = done * (rng.random(n) < 0.5)  # some ends are truncations: bootstrap through them
-    adv, targets = gae(
-        *(jnp.asarray(x, jnp.float32) for x in (r, v, v_next, dw, done)), 0.99, 0.95, penalty
-    )
-    ref_adv, ref_targets = gae_reference(r, v, v_next, dw, done, 0.99, 0.95, penalty)
-    np.testing.assert_allclose(adv, ref_adv, rtol=1e-5, atol=1e-5)
-    np.testing.assert_allclose(targets, ref_targets, rtol=1e-5, atol=1e-5)
-
-
-def test_clipped_objective_matches_numpy_reference():
-    rng = np.random.default_rng(1)
-    logp_old = rng.standard_normal(500)
-    logp_new = logp_old + 0.3 * rng.standard_normal(500)
-    adv = rng.standard_normal(500)
-    ratio = np.exp(logp_new - logp_old)
-    ref = np.minimum(ratio * adv, np.clip(ratio, 0.8, 1.2) * adv)
-    got = rnac.ppo_clip_objective(
-        jnp.asarray(logp_new), jnp.asarray(logp_old), jnp.asarray(adv), 0.2
-    )
-    np.testing.assert_allclose(got, ref, rtol=1e-5)
-    # where the ratio has left [1-ε, 1+ε] in the direction the advantage favours, no gradient
-    grad = jax.grad(lambda lp: jnp.sum(rnac.ppo_clip_objective(lp, logp_old, adv, 0.2)))(logp_new)
-    frozen = ((adv > 0) & (ratio > 1.2)) | ((adv < 0) & (ratio < 0.8))
-    assert frozen.any() and np.all(np.asarray(grad)[frozen] == 0)
-    np.testing.assert_allclose(np.asarray(grad)[~frozen], (ratio * adv)[~frozen], rtol=1e-5)
-
-
 def test_ipm_penalty_value():
-    critic = rnac.init_critic(np.random.default_rng(0), 11, (64, 64))
+    critic = onpolicy.init_critic(np.random.default_rng(0), 11, (64, 64))
     critic["out"]["b"] = np.asarray([5.0], np.float32)  # the output bias is not in the norm
     critic["trunk"][0]["b"] = np.full(64, 0.1, np.float32)  # hidden biases are
     squares = sum(
@@ -84,14 +40,14 @@ def test_ipm_penalty_value():
 
 
 def test_worst_case_selection_picks_the_lowest_valued_candidate():
-    critic = rnac.init_critic(np.random.default_rng(1), 11, (64, 64))
+    critic = onpolicy.init_critic(np.random.default_rng(1), 11, (64, 64))
     candidates = np.random.default_rng(3).standard_normal((5, 11)).astype(np.float32)
-    values = rnac.critic_value(critic, candidates, np)
+    values = onpolicy.critic_value(critic, candidates, np)
     assert rnac.select_candidate(values, worst=True, random_index=4) == int(np.argmin(values))
     assert values[rnac.select_candidate(values, True, 0)] == values.min()
     assert rnac.select_candidate(values, worst=False, random_index=4) == 4
     np.testing.assert_allclose(
-        values, rnac.critic_value(critic, jnp.asarray(candidates)), rtol=1e-5
+        values, onpolicy.critic_value(critic, jnp.asarray(candidates)), rtol=1e-5
     )
     # the draws: noise within ±noise, the worst case with probability δ, random index uniform
     rng = np.random.default_rng(4)

@@ -10,7 +10,7 @@ import jax
 import numpy as np
 import pytest
 
-from adarl.algos import rnac, rnac_config
+from adarl.algos import onpolicy, rnac, rnac_config
 from adarl.errors import UsageError
 from adarl.runs.logs import read_csv
 from adarl.train import rnac_learner, trainers
@@ -88,8 +88,8 @@ def test_run_checkpoint_and_exact_resume(tmp_path):
     actor = jax.tree.map(lambda x: np.asarray(x[1]), state.actor)
     count, m2 = arrays["host/obs_count"][1], arrays["host/obs_m2"][1]
     obs = np.random.default_rng(5).standard_normal((4, 11))
-    norm = rnac.normalise_obs(obs, arrays["host/obs_mean"][1], m2 / count, config.obs_clip)
-    expected = rnac.actor_mean(actor, norm, -np.ones(3), np.ones(3), np)
+    norm = onpolicy.normalise_obs(obs, arrays["host/obs_mean"][1], m2 / count, config.obs_clip)
+    expected = onpolicy.actor_mean(actor, norm, -np.ones(3), np.ones(3), np)
     policy = load(full / "checkpoints/step_000000001024/policy_seed_1.npz")
     np.testing.assert_allclose(policy(obs), expected, rtol=1e-5, atol=1e-6)
     before = (full / "train.csv").read_bytes()
