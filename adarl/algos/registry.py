@@ -33,6 +33,15 @@ RUN_RECORD_KEYS = ("algo", "format_version", "adarl_version", "command", "fork")
 
 
 @dataclass(frozen=True)
+class Retired:
+    """A config field adarl no longer has, which config.yaml files written before still hold."""
+
+    today: object  # the value that means what adarl does today: read, and dropped
+    meant: str  # what the other values meant
+    last_commit: str  # the last adarl commit that resumes and forks runs with another value
+
+
+@dataclass(frozen=True)
 class Algorithm:
     name: str
     config_class: type  # its config dataclass (a `RunConfig`)
@@ -44,6 +53,9 @@ class Algorithm:
     default_preset: str
     # fields a config.yaml written before they existed is read with (their value back then)
     legacy_fields: Mapping[str, object] = field(default_factory=dict)
+    # fields it no longer has: runs that recorded another value evaluate, report and export,
+    # but resume and fork only with the adarl that trained them (`check_resumable`)
+    retired_fields: Mapping[str, Retired] = field(default_factory=dict)
     # its original reports each seed's best checkpoint by evaluation: `adarl report
     # --best-checkpoint best` scores it there (the loop keeps every algorithm's best policy,
     # docs/run-format.md; the other algorithms are always scored at their final checkpoint)
@@ -105,6 +117,15 @@ SAC_FAMILY_ROLES: dict[str, dict] = {
     "sac-sparse": {"report_label": _sparse_label},
 }
 ADARL_SCHEDULE = ("adarl", "adarl-control")  # the control runs AdaRL's schedule
+# `lanes: K` (K ≥ 1) of runs started before 2026-12-02 (8f57d24); none of the presets, the
+# sweeps' run folders or the campaign's (all `lanes: 0`) has it (docs/algorithms.md)
+SAC_RETIRED = {
+    "lanes": Retired(
+        today=0,
+        meant="its seeds trained in K vmapped groups sharing one bottleneck width",
+        last_commit="4ef91cf",
+    )
+}
 
 ALGORITHMS: dict[str, Algorithm] = {
     **{
@@ -116,6 +137,7 @@ ALGORITHMS: dict[str, Algorithm] = {
             presets=sac_config.PRESETS,
             default_preset="paper",
             legacy_fields={"lr_schedule": "restart"},
+            retired_fields=SAC_RETIRED,
             **SAC_FAMILY_ROLES.get(name, {}),
         )
         for name, fields in SAC_FAMILY.items()
@@ -131,8 +153,6 @@ ALGORITHMS: dict[str, Algorithm] = {
     ),
 }
 ALGOS: tuple[str, ...] = tuple(ALGORITHMS)
-# the algorithm of a config.yaml without an `algo` key (none written by adarl so far)
-LEGACY_ALGO = "rnac"
 
 
 def get(name: str) -> Algorithm:
@@ -199,10 +219,33 @@ def resolve_config(
     return config.validate() if check else config
 
 
+def record_algo(values: dict, where: str) -> str:
+    """The algorithm a run's config.yaml (already read) names; `where` names it in errors."""
+    if "algo" not in values:  # every config.yaml adarl has written names it
+        raise UsageError(
+            f"{where} has no algo: line; put back the run's algorithm, one of {', '.join(ALGOS)}"
+        )
+    return str(values["algo"])
+
+
+def check_resumable(values: dict, where: str) -> None:
+    """A one-line UsageError if a run's config.yaml (already read) holds a retired field with a
+    value adarl no longer trains (`Algorithm.retired_fields`), naming the commit that does."""
+    for name, retired in get(record_algo(values, where)).retired_fields.items():
+        if name in values and values[name] != retired.today:
+            raise UsageError(
+                f"{where} has {name}: {values[name]} ({retired.meant}), which this adarl no "
+                f"longer trains: evaluate, report and export it here, resume or fork it with "
+                f"adarl at commit {retired.last_commit} (git checkout {retired.last_commit})"
+            )
+
+
 def config_from_record(values: dict, where: str):
-    """(algo, config) from a run's config.yaml (already read); `where` names it in errors."""
-    algo = values.get("algo", LEGACY_ALGO)
+    """(algo, config) from a run's config.yaml (already read); `where` names it in errors.
+    Retired fields are dropped (`check_resumable` says whether the run can go on)."""
+    algo = record_algo(values, where)
     entry = get(algo)
+    values = {k: v for k, v in values.items() if k not in entry.retired_fields}
     names = field_names(algo)
     unknown = sorted(set(values) - names - set(RUN_RECORD_KEYS))
     if unknown:  # a typo or a hand edit: dropping it silently would change the run

@@ -46,10 +46,6 @@ class SACConfig(RunConfig):
     Defaults: the AdaRL paper's setting."""
 
     algo: str = "adarl"  # the algorithm (adarl train --algo)
-    # 0: every seed is its own lane (its own XLA computations and bottleneck widths), so a seed's
-    # numbers never depend on the other seeds of the run; K ≥ 1: the earlier layout of K vmapped
-    # groups (run folders written before keep it), where they do
-    lanes: int = 0
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics
     activation: str = "relu"  # hidden-layer activation
@@ -87,9 +83,8 @@ class SACConfig(RunConfig):
     warmup_steps: int = 2000  # learning-rate warm-up after each truncation
     lr_min_ratio: float = 0.1  # floor of the cosine decay, as a fraction of the learning rate
     schedule_first_iteration: bool = False  # warm-up + cosine before the first truncation too
-    # after a truncation, narrow each bottleneck to the largest rank among its lane's seeds (one
-    # seed per lane by default) and recompile: cheaper updates for the rest of the run; False
-    # keeps full width, masked
+    # after a truncation, narrow each seed's bottlenecks to their ranks and recompile its
+    # update: cheaper updates for the rest of the run; False keeps full width, masked
     compact_bottlenecks: bool = True
     # false: AdaRL's schedule-matched control (--algo adarl-control): every truncation computes
     # and logs the rule's rank but re-parameterises each bottleneck at its old rank, with the same
@@ -134,7 +129,7 @@ class SACConfig(RunConfig):
                     f"{name.replace('_', '-')} must be a multiple of update-every "
                     f"({self.update_every}), got {getattr(self, name)}"
                 )
-        for name in ("start_steps", "update_after", "warmup_steps", "lanes"):
+        for name in ("start_steps", "update_after", "warmup_steps"):
             if getattr(self, name) < 0:
                 raise UsageError(f"{name.replace('_', '-')} must be ≥ 0, got {getattr(self, name)}")
         if not 0.0 < self.beta < 1.0:

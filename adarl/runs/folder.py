@@ -145,14 +145,15 @@ def check_complete_config(run_dir: str | os.PathLike, recorded: dict | None = No
     so every field of its algorithm) but that its config.yaml lacks: a resume fills in no
     default (a deleted `total_steps:` line would train to the default budget). Fields a run
     written before they existed lacks are not in its checkpoint's record, and keep their
-    defaults."""
+    defaults. A retired field's value that adarl no longer trains is refused here too
+    (`registry.check_resumable`): every resume and fork comes through here."""
     from adarl.algos import registry
 
     values = load_config(run_dir)
-    algo = values.get("algo", registry.LEGACY_ALGO)
-    names = registry.field_names(algo) - {"algo"}
-    known = recorded is not None
     path = Path(run_dir) / CONFIG_FILE
+    registry.check_resumable(values, str(path))
+    names = registry.field_names(registry.record_algo(values, str(path))) - {"algo"}
+    known = recorded is not None
     for name, value in (recorded if known else dict.fromkeys(sorted(names))).items():
         if name not in values and name in names:
             line = f"`{name}: {json.dumps(value)}`" if known else f"its {name}: line"

@@ -1,23 +1,20 @@
 """The learner of the SAC family for the training loop (`adarl.train.loop`): several seeds in
 one process.
 
-Each seed has its own environment, replay buffer, networks and RNG streams; the jitted update
-of `adarl.algos.sac` is `vmap`ped over a lane's seeds, and the lanes advance in lock-step. The
-host steps the environments, collects `update_every` transitions per seed, then makes one jitted
-call per lane that appends them to the device buffers and runs `update_every` gradient steps
-(`lax.scan`).
-
-Every seed is its own lane: its own state, its own XLA computations and, once AdaRL has cut
-its rank, its own bottleneck widths, so a seed's numbers are a function of (code, config, seed)
-alone, whichever seeds train beside it (vmapping several seeds into one computation changes the
-matmul kernels, and so the last bits, of every seed in it). JAX runs a lane's update
-asynchronously while the host steps the next lane's environments, so on a 2-core machine the
-simulator and the learner overlap. Run folders written before keep the layout they recorded
-(`lanes: K`: K vmapped groups sharing one width, the widest rank among all seeds). Exploration actions are sampled on the host
-(`NumpyPolicy.sample`, noise from each seed's NumPy generator) from a copy of the lane's actor
-taken after its update, so stepping a lane never waits behind another lane's update. Every seed
-still sees exactly Spinning Up's schedule: `update_every` steps with the current policy, then
-`update_every` updates.
+Each seed has its own environment, replay buffer, networks and RNG streams: it is its own
+lane, with its own state, its own XLA computations (the jitted update of `adarl.algos.sac`,
+`vmap`ped over a seed axis of length 1) and, once AdaRL has cut its rank, its own bottleneck
+widths, so a seed's numbers are a function of (code, config, seed) alone, whichever seeds train
+beside it (vmapping several seeds into one computation changes the matmul kernels, and so the
+last bits, of every seed in it; the layout that did, `lanes: K`, is retired). The lanes advance
+in lock-step: the host steps a lane's environment for `update_every` steps, then makes one
+jitted call that appends the transitions to its device buffer and runs `update_every` gradient
+steps (`lax.scan`). JAX runs a lane's update asynchronously while the host steps the next
+lane's environment, so on a 2-core machine the simulator and the learner overlap. Exploration
+actions are sampled on the host (`NumpyPolicy.sample`, noise from the seed's NumPy generator)
+from a copy of the lane's actor taken after its update, so stepping a lane never waits behind
+another lane's update. Every seed sees exactly Spinning Up's schedule: `update_every` steps with
+the current policy, then `update_every` updates.
 
 AdaRL truncates after the chunks `schedule.truncation_steps` lists (the one place that says when):
 `advance` returns the `TRUNCATE` event there, the loop keeps a pre-truncation checkpoint (a fork
@@ -112,29 +109,20 @@ def _compile_functions(spec: sac.Spec) -> Compiled:
     )
 
 
-def split_lanes(n_seeds: int, lanes: int) -> list[range]:
-    """Positions of the seeds in each lane: `lanes` contiguous groups, sizes as equal as
-    possible, larger first (5 seeds, 2 lanes: [0, 1, 2], [3, 4])."""
-    lanes = min(lanes, n_seeds)
-    sizes = [n_seeds // lanes + (i < n_seeds % lanes) for i in range(lanes)]
-    starts = np.cumsum([0, *sizes])
-    return [range(starts[i], starts[i + 1]) for i in range(lanes)]
-
-
 @dataclasses.dataclass
 class Lane:
-    """The seeds trained by one vmapped update (one seed, except in run folders written before).
-    Lanes take turns: while one lane's update runs (JAX dispatches it asynchronously), the host
-    steps the next lane's environments, so the update and the simulator use both cores."""
+    """One seed and its vmapped update. Lanes take turns: while one lane's update runs (JAX
+    dispatches it asynchronously), the host steps the next lane's environment, so the update and
+    the simulator use both cores."""
 
-    seeds: range  # positions in SACLearner.seeds
+    index: int  # the seed's position in SACLearner.seeds
     device: jax.Device
-    state: dict  # device state, leading axis = the lane's seeds
+    state: dict  # device state, leading axis (length 1) = the seed
     builder: replay.ChunkBuilder
     spec: sac.Spec  # the lane's bottleneck widths
     fns: Compiled
     infos: list = dataclasses.field(default_factory=list)  # update metrics not yet logged
-    actors: list | None = None  # host copies of the current policies; None = stale
+    actor: object = None  # host copy of the current policy (NumpyPolicy); None = stale
 
 
 class SACLearner:
@@ -158,9 +146,6 @@ class SACLearner:
             config, self.envs[0].observation_space.shape[0], space.shape[0], space.low, space.high
         )
         self.layer_names = sac.bottleneck_names(config)
-        # lanes: 0, one lane per seed; K (run folders written before), K groups of one width
-        self.shared_widths = config.lanes > 0
-        self.lane_seeds = split_lanes(self.n, config.lanes or self.n)
         self.truncation_steps = set(schedule.truncation_steps(config))
         check_training_memory(
             self.n,
@@ -212,35 +197,31 @@ class SACLearner:
         self, state: dict, buffers: dict | None = None, lane_widths: list | None = None
     ) -> None:
         """Split a host state of all seeds (without buffers, bottlenecks `self.spec` wide) into
-        lanes, lane k on local device k mod (number of devices); `buffers`: saved buffer rows of
-        all seeds, or None (empty); `lane_widths`: each lane's bottleneck widths (default
-        `self.spec`'s)."""
+        one lane per seed, lane k on local device k mod (number of devices); `buffers`: saved
+        buffer rows of all seeds, or None (empty); `lane_widths`: each lane's bottleneck widths
+        (default `self.spec`'s)."""
         c = self.config
         devices = jax.local_devices()
         self.lanes = []
-        for k, seeds in enumerate(self.lane_seeds):
+        for k in range(self.n):
             device = devices[k % len(devices)]
             spec = self.spec if lane_widths is None else sac.with_widths(self.spec, lane_widths[k])
-            part = _take(state, slice(seeds.start, seeds.stop))
+            part = _take(state, slice(k, k + 1))
             if spec != self.spec:
                 part = sac.resize_bottlenecks(spec, part)
             part = jax.device_put(part, device)
-            buf = replay.empty_buffers(
-                len(seeds), c.buffer_size, self.spec.obs_dim, self.spec.act_dim
-            )
+            buf = replay.empty_buffers(1, c.buffer_size, self.spec.obs_dim, self.spec.act_dim)
             if buffers is not None:
                 for key in BUFFER_ROW_KEYS:
-                    saved = buffers[key][seeds.start : seeds.stop]
+                    saved = buffers[key][k : k + 1]
                     buf[key] = buf[key].at[:, : saved.shape[1]].set(saved)
-                buf["ptr"] = jnp.asarray(buffers["ptr"][seeds.start : seeds.stop])
-                buf["size"] = jnp.asarray(buffers["size"][seeds.start : seeds.stop])
+                buf["ptr"] = jnp.asarray(buffers["ptr"][k : k + 1])
+                buf["size"] = jnp.asarray(buffers["size"][k : k + 1])
             part["buffer"] = jax.device_put(buf, device)
-            builder = replay.ChunkBuilder(
-                len(seeds), c.update_every, self.spec.obs_dim, self.spec.act_dim
-            )
+            builder = replay.ChunkBuilder(1, c.update_every, self.spec.obs_dim, self.spec.act_dim)
             self.lanes.append(
                 Lane(
-                    seeds=seeds,
+                    index=k,
                     device=device,
                     state=part,
                     builder=builder,
@@ -256,8 +237,8 @@ class SACLearner:
 
     def checkpoint_state(self) -> tuple[dict[str, np.ndarray], dict]:
         """Everything to continue exactly, and meta.json's bottleneck widths; every lane's
-        bottlenecks stored `self.spec` wide (the configured width, or a legacy run's shared
-        width), so a seed's arrays do not depend on the widths of the other seeds."""
+        bottlenecks stored `self.spec` wide (the configured width), so a seed's arrays do not
+        depend on the widths of the other seeds."""
 
         def stored(lane):
             state = {k: v for k, v in lane.state.items() if k != "buffer"}
@@ -279,11 +260,10 @@ class SACLearner:
             infos = jax.device_get(lane.infos)
             for name in infos[0] if infos else ():
                 arrays[f"{PENDING}/{k}/{name}"] = np.stack([info[name] for info in infos])
-        meta = {"bottleneck_widths": sac.bottleneck_widths(self.spec)}
-        if not self.shared_widths:
-            meta["lane_bottleneck_widths"] = [
-                sac.bottleneck_widths(lane.spec) for lane in self.lanes
-            ]
+        meta = {
+            "bottleneck_widths": sac.bottleneck_widths(self.spec),
+            "lane_bottleneck_widths": [sac.bottleneck_widths(lane.spec) for lane in self.lanes],
+        }
         return arrays, meta
 
     def restore(self, arrays: dict, meta: dict) -> None:
@@ -292,8 +272,6 @@ class SACLearner:
                 "this checkpoint was written by an adarl that sampled exploration actions with "
                 "JAX keys; it cannot be continued exactly here: train a new run"
             )
-        if meta.get("bottleneck_widths"):
-            self.spec = sac.with_widths(self.spec, meta["bottleneck_widths"])
         one = sac.init_state(self.spec, 0, with_buffer=False)
         template = jax.tree_util.tree_map(
             lambda a: np.zeros((self.n, *np.shape(a)), np.asarray(a).dtype), one
@@ -325,64 +303,51 @@ class SACLearner:
             env.set_state(codec.decode_env_state(env_state, arrays))
 
     # ------------------------------------------------------------------ acting and learning
-    def host_actors(self, lane: Lane) -> list:
-        """The lane's current policies as NumPy samplers (refreshed after each update): acting
+    def host_actor(self, lane: Lane):
+        """The lane's current policy as a NumPy sampler (refreshed after each update): acting
         on the host needs no device call, so it never waits behind another lane's update."""
         from adarl.policy import NumpyPolicy
 
-        if lane.actors is None:
-            actor = jax.device_get(lane.state["actor"])
-            masks = jax.device_get(lane.state["masks"]["actor"])
-            lane.actors = [
-                NumpyPolicy(sac.export_policy(lane.spec, _take(actor, j), _take(masks, j), True))
-                for j in range(len(lane.seeds))
-            ]
-        return lane.actors
+        if lane.actor is None:
+            actor = _take(jax.device_get(lane.state["actor"]), 0)
+            masks = _take(jax.device_get(lane.state["masks"]["actor"]), 0)
+            lane.actor = NumpyPolicy(sac.export_policy(lane.spec, actor, masks, True))
+        return lane.actor
 
-    def choose_actions(self, lane: Lane, t: int) -> np.ndarray:
-        """Actions of the lane's seeds for environment step `t` (1-based): uniform before
-        `start_steps`, then a = c + h·tanh(μ + σε) with ε from the seed's NumPy generator."""
+    def choose_action(self, lane: Lane, t: int) -> np.ndarray:
+        """The lane's action for environment step `t` (1-based): uniform before `start_steps`,
+        then a = c + h·tanh(μ + σε) with ε from the seed's NumPy generator."""
+        rng = self.rngs[lane.index]
         if t - 1 < self.config.start_steps:
             low, high = np.asarray(self.spec.act_low), np.asarray(self.spec.act_high)
-            return np.stack(
-                [self.rngs[i].uniform(low, high).astype(np.float32) for i in lane.seeds]
-            )
-        actors, dim = self.host_actors(lane), self.spec.act_dim
-        return np.stack(
-            [
-                actor.sample(self.obs[i], self.rngs[i].standard_normal(dim, np.float32))
-                for actor, i in zip(actors, lane.seeds)
-            ]
-        )
+            return rng.uniform(low, high).astype(np.float32)
+        noise = rng.standard_normal(self.spec.act_dim, np.float32)
+        return self.host_actor(lane).sample(self.obs[lane.index], noise)
 
-    def env_step(self, lane: Lane, t: int, actions: np.ndarray, episodes: list) -> None:
-        """Environment step `t` of the lane's seeds; rows go to the lane's chunk builder,
-        finished episodes to `episodes`."""
-        for j, i in enumerate(lane.seeds):
-            env = self.envs[i]
-            next_obs, reward, terminated, truncated, info = env.step(actions[j])
-            self.ep_return[i] += reward
-            self.ep_length[i] += 1
-            done = terminated or truncated
-            lane.builder.add(j, self.obs[i], actions[j], reward, terminated, next_obs, done)
-            if done:
-                episodes.append(
-                    Episode(i, t, info, float(self.ep_return[i]), int(self.ep_length[i]))
-                )
-                self.ep_return[i], self.ep_length[i] = 0.0, 0
-                next_obs, _ = env.reset()
-            self.obs[i] = next_obs
+    def env_step(self, lane: Lane, t: int, action: np.ndarray, episodes: list) -> None:
+        """Environment step `t` of the lane's seed; its row goes to the lane's chunk builder, a
+        finished episode to `episodes`."""
+        i, env = lane.index, self.envs[lane.index]
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        self.ep_return[i] += reward
+        self.ep_length[i] += 1
+        done = terminated or truncated
+        lane.builder.add(0, self.obs[i], action, reward, terminated, next_obs, done)
+        if done:
+            episodes.append(Episode(i, t, info, float(self.ep_return[i]), int(self.ep_length[i])))
+            self.ep_return[i], self.ep_length[i] = 0.0, 0
+            next_obs, _ = env.reset()
+        self.obs[i] = next_obs
 
     def end_chunk(self, lane: Lane, update: bool) -> None:
-        """Send the lane's chunk of rows to its buffers and, if `update`, start its
+        """Send the lane's chunk of rows to its buffer and, if `update`, start its
         `update_every` gradient steps (asynchronous)."""
-        for j, i in enumerate(lane.seeds):
-            lane.builder.close(j, self.obs[i])
+        lane.builder.close(0, self.obs[lane.index])
         rows, n_rows = jax.device_put(lane.builder.rows(), lane.device)
         if update:
             lane.state, info = lane.fns.collect_and_update(lane.state, rows, n_rows)
             lane.infos.append(info)
-            lane.actors = None
+            lane.actor = None
         else:
             lane.state, _ = lane.fns.collect(lane.state, rows, n_rows)
         lane.builder.clear()
@@ -396,7 +361,7 @@ class SACLearner:
         episodes = []
         for lane in self.lanes:
             for t in range(step + 1, end + 1):
-                self.env_step(lane, t, self.choose_actions(lane, t), episodes)
+                self.env_step(lane, t, self.choose_action(lane, t), episodes)
             self.end_chunk(lane, update)
         return Advance(end, episodes, due(c, end, truncate=end in self.truncation_steps))
 
@@ -414,7 +379,7 @@ class SACLearner:
         full = _layer_widths(self.spec)
         for lane in self.lanes:
             lane.state, report = lane.fns.truncate(lane.state)
-            lane.actors = None
+            lane.actor = None
             report = jax.device_get(report)
             for name, (s, *rest) in report.items():  # spectra of narrow lanes: zero-padded
                 report[name] = (_pad_last(s, full[name]), *rest)
@@ -444,24 +409,18 @@ class SACLearner:
         return Truncation(spectra, rows)
 
     def narrow_bottlenecks(self, ranks: dict) -> None:
-        """Store each lane's bottlenecks only as wide as its largest rank (and recompile its
-        update for those shapes): the cut components are exactly zero. Legacy layouts share
-        one width, the largest rank among all seeds, which checkpoints store."""
+        """Store each lane's bottlenecks only as wide as their ranks (the largest of the layers
+        that share a width) and recompile its update for those shapes: the cut components are
+        exactly zero."""
         for lane in self.lanes:
-            seeds = range(self.n) if self.shared_widths else lane.seeds
-            widths = {}
-            for key in sac.bottleneck_widths(lane.spec):
-                widths[key] = int(
-                    max(
-                        np.max(ranks[n][seeds.start : seeds.stop]) for n in sac.layers_of_width(key)
-                    )
-                )
+            widths = {
+                key: int(max(ranks[n][lane.index] for n in sac.layers_of_width(key)))
+                for key in sac.bottleneck_widths(lane.spec)
+            }
             if widths != sac.bottleneck_widths(lane.spec):
                 lane.spec = sac.with_widths(lane.spec, widths)
                 lane.fns = compile_functions(lane.spec)
                 lane.state = sac.resize_bottlenecks(lane.spec, lane.state)
-        if self.shared_widths:
-            self.spec = self.lanes[0].spec
 
     # ------------------------------------------------------------------ what the loop reads
     def train_rows(self, step: int, steps_per_s: float, watch) -> list[dict]:
@@ -506,10 +465,7 @@ class SACLearner:
         for lane in self.lanes:
             actor = jax.device_get(lane.state["actor"])
             masks = jax.device_get(lane.state["masks"]["actor"])
-            policies += [
-                sac.export_policy(lane.spec, _take(actor, j), _take(masks, j))
-                for j in range(len(lane.seeds))
-            ]
+            policies.append(sac.export_policy(lane.spec, _take(actor, 0), _take(masks, 0)))
         return policies
 
     def note_divergence(self, watch, step: int) -> None:

@@ -32,6 +32,8 @@ def test_protocol_roles_come_from_the_registry():
 RESOLVED = json.loads((Path(__file__).parents[1] / "data" / "resolved-configs.json").read_text())
 # fields added since, with the value every config had before them
 ADDED = {"RNACConfig": {"algo": "rnac", "max_episode_steps": 1000}}
+# fields retired since (registry.Algorithm.retired_fields), with the value every config had
+RETIRED = {"SACConfig": {"lanes": 0}}
 
 
 def _plain(config) -> dict:
@@ -45,7 +47,10 @@ def test_configs_resolve_to_the_values_they_always_had(case):
     config = registry.resolve_config(algo, preset, flags)
     name = type(config).__name__
     want = {**RESOLVED["class_defaults"][name], **ADDED.get(name, {})}
-    assert _plain(config) == {**want, **RESOLVED["resolved"][case]}
+    want = {**want, **RESOLVED["resolved"][case]}
+    for field, value in RETIRED.get(name, {}).items():
+        assert want.pop(field) == value == registry.get(algo).retired_fields[field].today
+    assert _plain(config) == want
 
 
 def test_the_cases_cover_every_algorithm_and_preset():

@@ -33,7 +33,6 @@ from adarl.cli.train import add_arguments, build_config
         (["--algo", "sac-parseval", "--parseval-coef", "0"], "must be > 0 for sac-parseval, got 0"),
         (["--algo", "sac-sparse", "--sparse-width", "-1"], "sparse-width must be"),
         (["--hidden", "64,0"], "hidden sizes must be"),
-        (["--lanes", "-1"], "lanes must be ≥ 0, got -1"),
         (["--eval-every", "1001"], "eval-every must be a multiple of update-every (50), got 1001"),
         (
             ["--retain-tolerance", "0"],
@@ -281,7 +280,7 @@ def test_every_config_field_has_its_meaning_in_help(capsys):
         capsys, "--algo", "rnac"
     )
     # a comment block above a field is its help; a `# --- section` heading is not
-    assert "--lanes INT 0: every seed is its own lane" in out
+    assert "--compact-bottlenecks BOOL after a truncation, narrow each seed's bottlenecks" in out
     assert "--hidden TUPLE hidden layer widths of actor and critics; default: 64,64" in out
 
 

@@ -3,7 +3,9 @@ written and read back through the registry.
 
 tests/data/run-format-1 holds two tiny runs written by adarl at commit 96c9f8c (run format 1,
 before the run-folder module): `sac-family` (adarl, 2 seeds, 200 steps, 4 truncations) and
-`rnac` (2 seeds, 128 steps), each with checkpoints at two steps."""
+`rnac` (2 seeds, 128 steps), each with checkpoints at two steps. `sac-family` recorded
+`lanes: 1` (its seeds vmapped together), a layout adarl no longer trains: it evaluates, ranks
+and exports, and its resume is refused naming the last commit that trains it."""
 
 import json
 import shutil
@@ -14,6 +16,7 @@ import pytest
 
 from adarl.algos import registry
 from adarl.cli.main import main
+from adarl.errors import UsageError
 from adarl.runs import folder
 from adarl.runs.logs import read_csv
 
@@ -54,11 +57,9 @@ def test_old_run_config_loads(name, algo):
     assert isinstance(config, registry.get(algo).config_class)
 
 
-@pytest.mark.parametrize("name", ["sac-family", "rnac"])
-def test_old_run_resumes_to_its_own_results(name, tmp_path):
-    """Killed after its first checkpoint (the last one, DONE and half a CSV line lost), the old
-    run resumes from its old-format checkpoint (old RNG keys, old env-state encoding, old CSV
-    offset names) and writes the rows it wrote the first time."""
+def _killed_copy(name: str, tmp_path: Path) -> Path:
+    """The old run killed after its first checkpoint (the last one, DONE and half a CSV line
+    lost)."""
     run = tmp_path / name
     shutil.copytree(OLD / name, run)
     saved = sorted((run / "checkpoints").iterdir())
@@ -66,12 +67,56 @@ def test_old_run_resumes_to_its_own_results(name, tmp_path):
     (run / "DONE").unlink()
     with open(run / "episodes.csv", "a") as f:
         f.write("99,0,99,12.")
+    return run
+
+
+@pytest.mark.parametrize("name", ["rnac"])
+def test_old_run_resumes_to_its_own_results(name, tmp_path):
+    """Killed after its first checkpoint (the last one, DONE and half a CSV line lost), the old
+    run resumes from its old-format checkpoint (old RNG keys, old env-state encoding, old CSV
+    offset names) and writes the rows it wrote the first time."""
+    run = _killed_copy(name, tmp_path)
     assert main(["train", "--resume", str(run), "--no-progress"]) == 0
     assert (run / "DONE").read_text() == (OLD / name / "DONE").read_text()
     for csv in sorted(p.name for p in (OLD / name).glob("*.csv")):
         assert _same_rows(_rows(run, csv), _rows(OLD / name, csv)), csv
     meta = json.loads((sorted((run / "checkpoints").iterdir())[-1] / "meta.json").read_text())
     assert "rng_states" in meta and "np_rngs" not in meta  # rewritten in today's keys
+
+
+def test_a_retired_layout_is_refused_on_resume_and_fork(tmp_path, capsys):
+    """`lanes: 1` (K ≥ 1: the retired vmapped layout): one line naming the commit that trains
+    it, exit 2, nothing written; `lanes: 0` (today's layout, which the campaign's runs record)
+    is read as today's config."""
+    run = _killed_copy("sac-family", tmp_path)
+    before = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
+    assert main(["train", "--resume", str(run), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert "has lanes: 1 (its seeds trained in K vmapped groups" in err
+    assert "resume or fork it with adarl at commit 4ef91cf" in err
+    fork = ["train", "--fork", str(run), "--at", "100", "--out", str(tmp_path / "child")]
+    assert main([*fork, "--no-progress"]) == 2
+    assert "with adarl at commit 4ef91cf" in capsys.readouterr().err
+    assert not (tmp_path / "child").exists()
+    after = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
+    assert after.pop(run / ".lock") and after == before  # the lock the resume took, nothing else
+
+    values = folder.load_config(run)
+    _, config = folder.config_from_run(run)
+    folder.write_config_values(run, {**values, "lanes": 0})
+    assert folder.config_from_run(run) == ("adarl", config)
+    registry.check_resumable(folder.load_config(run), "config.yaml")  # no error
+
+
+def test_a_config_without_algo_is_refused(tmp_path):
+    run = tmp_path / "rnac"
+    shutil.copytree(OLD / "rnac", run)
+    values = folder.load_config(run)
+    del values["algo"]
+    folder.write_config_values(run, values)
+    with pytest.raises(UsageError, match="has no algo: line; put back the run's algorithm, one"):
+        folder.config_from_run(run)
 
 
 def test_old_runs_evaluate_rank_and_export(tmp_path, capsys):

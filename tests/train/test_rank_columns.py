@@ -1,8 +1,7 @@
 """The rank columns of train.csv against truncations.csv, when several seeds train in one run: a
-seed's rank changes only at a truncation step, to that truncation's new rank, in the default
-layout (one lane per seed, each narrowed to its own ranks) and in the legacy `lanes: 2` layout
-(vmapped seeds sharing one narrowed width). Expected truncation steps and decisions are worked
-out here from the schedule and the ranks, not by the trainer's functions."""
+seed's rank changes only at a truncation step, to that truncation's new rank (one lane per seed,
+each narrowed to its own ranks). Expected truncation steps and decisions are worked out here
+from the schedule and the ranks, not by the trainer's functions."""
 
 from __future__ import annotations
 
@@ -64,11 +63,10 @@ def test_truncation_decision(truncated, expected):
     assert expected_decision(*truncated) == expected
 
 
-@pytest.mark.parametrize("lanes", [0, 2], ids=["one-lane-per-seed", "legacy-lanes-2"])
-def test_a_seeds_rank_changes_only_at_its_truncations(lanes, tmp_path):
+def test_a_seeds_rank_changes_only_at_its_truncations(tmp_path):
     config = smoke_config(
         seeds=(1, 0, 2), rank_rule="cumulative", truncate_every=100, total_steps=900,
-        log_every=50, eval_every=900, checkpoint_every=900, lanes=lanes,
+        log_every=50, eval_every=900, checkpoint_every=900,
     )  # fmt: skip
     run_dir = tmp_path / "run"
     trainers.train(config, run_dir, progress=False)

@@ -70,10 +70,9 @@ class Crash(Exception):
     "rank_settings",
     [
         {"rank_rule": "cumulative"},  # one lane per seed, each narrowed to its own widths
-        # the layout of run folders written before: lanes of 2 seeds (vmapped) and 1 seed
-        {"rank_rule": "energy", "retain_tolerance": 1e-3, "lanes": 2},
+        {"rank_rule": "energy", "retain_tolerance": 1e-3},
     ],
-    ids=["cumulative", "energy-retain-legacy-lanes"],
+    ids=["cumulative", "energy-retain"],
 )
 def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank_settings):
     config = smoke_config(
@@ -89,8 +88,8 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
 
     original = sac_learner.SACLearner.env_step
 
-    def crashing(self, lane, t, actions, run):
-        original(self, lane, t, actions, run)
+    def crashing(self, lane, t, action, episodes):
+        original(self, lane, t, action, episodes)
         if t == 1_600:  # after the checkpoint at 1000 and a truncation
             raise Crash
 
@@ -111,27 +110,19 @@ def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank
     assert spectra == sorted(p.name for p in (tmp_path / "full" / "spectra").iterdir())
 
 
-def test_split_lanes():
-    assert sac_learner.split_lanes(5, 4) == [range(0, 2), range(2, 3), range(3, 4), range(4, 5)]
-    assert sac_learner.split_lanes(5, 2) == [range(0, 3), range(3, 5)]
-    assert sac_learner.split_lanes(2, 4) == [range(0, 1), range(1, 2)]
-    assert sac_learner.split_lanes(1, 4) == [range(0, 1)]
-    assert sac_learner.split_lanes(8, 3) == [range(0, 3), range(3, 6), range(6, 8)]
-
-
 def test_lanes_hold_their_seeds_on_separate_devices(tmp_path):
-    run = sac_learner.SACLearner(smoke_config(seeds=(4, 7, 9), lanes=2))
-    run.fresh()
-    assert [lane.seeds for lane in run.lanes] == [range(0, 2), range(2, 3)]
-    assert [lane.state["buffer"]["obs"].shape[0] for lane in run.lanes] == [2, 1]
+    learner = sac_learner.SACLearner(smoke_config(seeds=(4, 7, 9)))
+    learner.fresh()
+    assert [lane.index for lane in learner.lanes] == [0, 1, 2]  # one lane per seed
+    assert [lane.state["buffer"]["obs"].shape[0] for lane in learner.lanes] == [1, 1, 1]
     devices = jax.local_devices()
-    assert [lane.device for lane in run.lanes] == [devices[0], devices[1 % len(devices)]]
-    for lane in run.lanes:
+    assert [lane.device for lane in learner.lanes] == [devices[k % len(devices)] for k in range(3)]
+    for lane in learner.lanes:
         assert lane.state["actor"]["mu"]["w"].devices() == {lane.device}
     # the checkpoint stacks the lanes back in seed order, exactly as they were initialised
-    arrays, _ = run.checkpoint_state()
+    arrays, _ = learner.checkpoint_state()
     expected = [
-        sac.init_state(run.spec, s, with_buffer=False)["actor"]["mu"]["w"] for s in (4, 7, 9)
+        sac.init_state(learner.spec, s, with_buffer=False)["actor"]["mu"]["w"] for s in (4, 7, 9)
     ]
     np.testing.assert_array_equal(arrays["state['actor']['mu']['w']"], np.stack(expected))
 
@@ -173,17 +164,6 @@ def test_a_seed_gives_the_same_bits_alone_and_among_other_seeds(tmp_path):
             assert not mine[len(value[0]) :].any(), key
         else:  # stacked over seeds
             np.testing.assert_array_equal(arrays_together[key][1], value[0], err_msg=key)
-
-
-def test_a_legacy_layout_still_vmaps_its_lanes(tmp_path):
-    """Run folders written before record `lanes: K`: K vmapped groups sharing one width, which
-    they keep so that they resume exactly (seeds 0 and 3 share a lane there and drift apart
-    from seed 0 alone, as they always did)."""
-    run = sac_learner.SACLearner(smoke_config(seeds=(0, 3, 5), lanes=2))
-    run.fresh()
-    assert [lane.seeds for lane in run.lanes] == [range(0, 2), range(2, 3)]
-    assert run.shared_widths
-    assert not sac_learner.SACLearner(smoke_config(seeds=(0, 3))).shared_widths
 
 
 def test_new_run_refuses_a_non_empty_folder(tmp_path):
