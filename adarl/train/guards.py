@@ -54,6 +54,13 @@ def check_training_memory(n_seeds: int, buffers: int, networks: int, lower: str)
     )
 
 
+def nonfinite_seeds(seeds, values) -> list[int]:
+    """The seeds whose `values` (one per seed, or per seed × anything, in the order of `seeds`)
+    are not all finite."""
+    values = np.asarray(values, dtype=np.float64).reshape(len(seeds), -1)
+    return [int(s) for s, ok in zip(seeds, np.isfinite(values).all(axis=1)) if not ok]
+
+
 class DivergenceWatch:
     """Non-finite losses, parameters and returns, per seed, checked at each logging point.
 
@@ -77,8 +84,7 @@ class DivergenceWatch:
     def note_values(self, quantity: str, seeds, values) -> None:
         """Note the seeds whose `values` (one per seed, or per seed × anything) are not all
         finite."""
-        values = np.asarray(values, dtype=np.float64).reshape(len(seeds), -1)
-        self.note(quantity, [s for s, ok in zip(seeds, np.isfinite(values).all(axis=1)) if not ok])
+        self.note(quantity, nonfinite_seeds(seeds, values))
 
     def check(self, step: int) -> None:
         if not self.found:

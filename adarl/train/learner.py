@@ -109,9 +109,8 @@ class Learner(Protocol):
         """The truncation due at `step` (only a learner whose advances return `TRUNCATE`; its
         config has `checkpoint_before_truncation`)."""
 
-    def train_rows(self, step: int, steps_per_s: float, watch) -> list[dict]:
-        """train.csv rows since the last ones (may be empty); non-finite metrics noted in
-        `watch` (`adarl.train.guards.DivergenceWatch`)."""
+    def train_rows(self, step: int, steps_per_s: float) -> list[dict]:
+        """train.csv rows since the last ones (may be empty)."""
 
     def policies(self) -> list[dict]:
         """Each seed's policy arrays (adarl.policy)."""
@@ -119,5 +118,8 @@ class Learner(Protocol):
     def checkpoint_state(self) -> tuple[dict[str, np.ndarray], dict]:
         """Everything else needed to continue exactly: arrays, and entries of meta.json."""
 
-    def note_divergence(self, watch, step: int) -> None:
-        """Note non-finite parameters, optimiser states, metrics or returns in `watch`."""
+    def nonfinite(self, step: int) -> dict[str, list[int]]:
+        """What is not finite at `step`: quantity (`"actor parameters"`, `"loss_q"`, …) -> the
+        seeds where it is not (parameters, optimiser states, the latest update metrics, the
+        current episodes' returns); only quantities with seeds. The loop's divergence watch
+        stops or warns (`adarl.train.guards.nonfinite_seeds` helps build it)."""

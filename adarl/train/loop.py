@@ -214,7 +214,7 @@ class Loop:
 
     # ------------------------------------------------------------------ the step's work
     def write_train_rows(self, steps_per_s: float) -> None:
-        rows = self.learner.train_rows(self.step, steps_per_s, self.watch)
+        rows = self.learner.train_rows(self.step, steps_per_s)
         for row in rows:
             self.tb.write(
                 self.step,
@@ -254,7 +254,8 @@ class Loop:
     def check_divergence(self) -> None:
         """Stop the run (or warn once) on non-finite parameters, optimiser states, metrics or
         returns (docs/reliability.md)."""
-        self.learner.note_divergence(self.watch, self.step)
+        for quantity, seeds in self.learner.nonfinite(self.step).items():
+            self.watch.note(quantity, seeds)
         self.watch.check(self.step)
 
     def save(self, phase: str | None = None) -> None:

@@ -27,7 +27,7 @@ from adarl.algos.rnac import (
 from adarl.algos.rnac_config import RNACConfig
 from adarl.envs.env import model_sizes
 from adarl.runs import checkpoints, codec
-from adarl.train.guards import check_training_memory
+from adarl.train.guards import check_training_memory, nonfinite_seeds
 from adarl.train.learner import Advance, Episode, Truncation, due
 
 
@@ -204,7 +204,7 @@ class RNACLearner:
     def truncate(self, step: int) -> Truncation:
         raise NotImplementedError("RNAC keeps its networks' ranks: it never truncates")
 
-    def train_rows(self, step: int, steps_per_s: float, watch) -> list[dict]:
+    def train_rows(self, step: int, steps_per_s: float) -> list[dict]:
         """One train.csv row per seed: the latest update's metrics (NaN before the first)."""
         return [
             {"step": step, "seed": s, "steps_per_s": steps_per_s}
@@ -219,19 +219,21 @@ class RNACLearner:
             for i, (actor, _) in enumerate(self.params)
         ]
 
-    def note_divergence(self, watch, step: int) -> None:
+    def nonfinite(self, step: int) -> dict[str, list[int]]:
         """Non-finite update metrics (once there was an update), parameters, optimiser states
-        or returns."""
+        or returns, by quantity."""
         seeds, n_seeds = self.seeds, len(self.seeds)
+        found = {}
         if step >= self.config.rollout_steps:
             for j, name in enumerate(METRICS):
-                watch.note_values(name, seeds, self.host.metrics[:, j])
+                found[name] = nonfinite_seeds(seeds, self.host.metrics[:, j])
         for m, net in enumerate(("actor", "critic")):
             flat = [
                 np.concatenate([np.ravel(x) for x in jax.tree.leaves(p[m])]) for p in self.params
             ]
-            watch.note_values(f"{net} parameters", seeds, flat)
+            found[f"{net} parameters"] = nonfinite_seeds(seeds, flat)
         for net, opt in (("actor", self.state.actor_opt), ("critic", self.state.critic_opt)):
             leaves = [np.reshape(x, (n_seeds, -1)) for x in jax.tree.leaves(jax.device_get(opt))]
-            watch.note_values(f"{net} optimiser state", seeds, np.concatenate(leaves, axis=1))
-        watch.note_values("episode return", seeds, self.host.ep_return)
+            found[f"{net} optimiser state"] = nonfinite_seeds(seeds, np.concatenate(leaves, axis=1))
+        found["episode return"] = nonfinite_seeds(seeds, self.host.ep_return)
+        return {quantity: s for quantity, s in found.items() if s}

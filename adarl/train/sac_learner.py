@@ -37,7 +37,7 @@ import numpy as np
 from adarl.algos import replay, sac, sac_config, schedule
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec, layout
-from adarl.train.guards import check_training_memory
+from adarl.train.guards import check_training_memory, nonfinite_seeds
 from adarl.train.learner import Advance, Episode, Truncation, due
 
 LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
@@ -146,6 +146,7 @@ class SACLearner:
             config, self.envs[0].observation_space.shape[0], space.shape[0], space.low, space.high
         )
         self.layer_names = sac.bottleneck_names(config)
+        self.metric_means: dict | None = None  # of the latest train.csv rows, per seed
         self.truncation_steps = set(schedule.truncation_steps(config))
         check_training_memory(
             self.n,
@@ -423,7 +424,7 @@ class SACLearner:
                 lane.state = sac.resize_bottlenecks(lane.spec, lane.state)
 
     # ------------------------------------------------------------------ what the loop reads
-    def train_rows(self, step: int, steps_per_s: float, watch) -> list[dict]:
+    def train_rows(self, step: int, steps_per_s: float) -> list[dict]:
         """One train.csv row per seed: the update metrics averaged since the last rows, the
         ranks and diagnostics (none before the first update)."""
         if not self.lanes[0].infos:
@@ -433,9 +434,7 @@ class SACLearner:
             infos = jax.device_get(lane.infos)
             lane.infos = []
             per_lane.append({k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]})
-        mean = _concat_lanes(per_lane)
-        for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
-            watch.note_values(key, self.seeds, mean[key])
+        mean = self.metric_means = _concat_lanes(per_lane)
         ranks = self.gather(_ranks)
         diag = self.gather(lambda lane: lane.fns.diagnostics(lane.state))
         rows = []
@@ -468,10 +467,17 @@ class SACLearner:
             policies.append(sac.export_policy(lane.spec, _take(actor, 0), _take(masks, 0)))
         return policies
 
-    def note_divergence(self, watch, step: int) -> None:
+    def nonfinite(self, step: int) -> dict[str, list[int]]:
+        """Non-finite update metrics of the latest train.csv rows, parameters, optimiser states
+        or returns, by quantity."""
+        found = {}
+        if self.metric_means is not None:
+            for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
+                found[key] = nonfinite_seeds(self.seeds, self.metric_means[key])
         for name, ok in self.gather(lambda lane: _finite_parameters(lane.state)).items():
-            watch.note(name, [s for s, o in zip(self.seeds, ok) if not o])
-        watch.note_values("episode return", self.seeds, self.ep_return)
+            found[name] = [s for s, o in zip(self.seeds, ok) if not o]
+        found["episode return"] = nonfinite_seeds(self.seeds, self.ep_return)
+        return {quantity: seeds for quantity, seeds in found.items() if seeds}
 
 
 def truncation_decision(
