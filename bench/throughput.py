@@ -6,8 +6,8 @@ same run.
 
 Prints environment steps per second of training (environment steps, action selection, buffer
 writes and one gradient update per step; periodic evaluation and checkpoints excluded), for one
-seed and for five seeds in one process (summed over seeds; one lane per seed, the default, and the
-vmapped layouts of earlier versions: 4 lanes, and all five in one lane), the ratio to Stable-Baselines3 SAC with the same networks and settings (when
+seed and for five seeds in one process (summed over seeds; one lane per seed), the ratio to
+Stable-Baselines3 SAC with the same networks and settings (when
 `pip install -e .[bench]` has installed it), the cost of a rank truncation relative to training,
 the masked-vs-compact bottleneck update cost, and RNAC (`ds` and `ipm`) when its benchmark module
 is present. Compilation is excluded (a warm-up runs first).
@@ -58,14 +58,14 @@ def training_rate(
     """Environment steps per second (per process) of the training loop, after `warmup` steps."""
     learner = sac_learner.SACLearner(config)
     run_dir = Path(tempfile.mkdtemp(prefix="adarl-bench-"))  # its logs only; removed below
-    run = loop.Loop(learner, run_dir, progress=False)
+    training = loop.Loop(learner, run_dir, progress=False)
     learner.fresh()
-    run.open_logs(None)
+    training.open_logs(None)
 
     def advance(k):
-        target = run.step + k
-        while run.step < target:
-            run.step = learner.advance(run.step).step
+        target = training.step + k
+        while training.step < target:
+            training.step = learner.advance(training.step).step
             for lane in learner.lanes:
                 lane.infos.clear()
 
@@ -75,29 +75,29 @@ def training_rate(
 
     advance(warmup)
     block_until_ready()
-    start, first = time.perf_counter(), run.step
+    start, first = time.perf_counter(), training.step
     advance(steps)
     block_until_ready()
-    rate = (run.step - first) / (time.perf_counter() - start)
-    run.close()
+    rate = (training.step - first) / (time.perf_counter() - start)
+    training.close()
     shutil.rmtree(run_dir, ignore_errors=True)
     return rate, learner
 
 
-def truncation_cost(run: sac_learner.SACLearner, rate: float, **config) -> tuple[float, float]:
+def truncation_cost(learner: sac_learner.SACLearner, rate: float, **config) -> tuple[float, float]:
     """Seconds per truncation (one lane), and its share of the training time between two;
     `config` changes fields of the run's config for this measurement (e.g. the retain test)."""
-    spec = dataclasses.replace(run.spec, config=dataclasses.replace(run.config, **config))
+    spec = dataclasses.replace(learner.spec, config=dataclasses.replace(learner.config, **config))
     truncate = sac_learner.compile_functions(spec).truncate
     times = []
     for _ in range(6):  # the first call compiles; the best of the other five counts
-        state = jax.tree_util.tree_map(lambda a: a.copy(), run.lanes[0].state)
+        state = jax.tree_util.tree_map(lambda a: a.copy(), learner.lanes[0].state)
         jax.block_until_ready(state)
         start = time.perf_counter()
         jax.block_until_ready(truncate(state))
         times.append(time.perf_counter() - start)
     seconds = min(times[1:])
-    interval = run.config.truncate_every / rate  # seconds of training between truncations
+    interval = learner.config.truncate_every / rate  # seconds of training between truncations
     return seconds, seconds / interval
 
 
@@ -176,15 +176,6 @@ def main() -> int:
     parser.add_argument("--algos", nargs="+", default=["adarl", "sac"])
     parser.add_argument("--no-sb3", action="store_true")
     parser.add_argument("--no-rnac", action="store_true")
-    parser.add_argument(
-        "--one-lane-seeds",
-        type=int,
-        nargs="*",
-        default=[],
-        metavar="N",
-        help="also measure N seeds vmapped in one lane (--lanes 1) for each N: how the host-physics "
-        "path scales where the update runs on an accelerator (bench/accelerator.sh)",
-    )
     args = parser.parse_args()
     print(
         f"Hopper-v5, paper dynamics, (64, 64) ReLU, batch 256, 1 update/step; {os.cpu_count()} "
@@ -196,7 +187,7 @@ def main() -> int:
     else:
         print(f"Stable-Baselines3 SAC, 1 seed: {reference:8.1f} steps/s")
     for algo in args.algos:
-        one, run = training_rate(paper_config(algo, 1), args.steps, args.warmup)
+        one, learner = training_rate(paper_config(algo, 1), args.steps, args.warmup)
         five, _ = training_rate(paper_config(algo, 5), args.steps // 3, args.warmup)
         line = (
             f"{algo:6s} 1 seed: {one:8.1f} steps/s   5 seeds: {five:7.1f} steps/s x 5 = "
@@ -205,35 +196,16 @@ def main() -> int:
         if reference:
             line += f"   1 seed vs SB3: {one / reference:.2f}x"
         print(line)
-        for lanes, label in [
-            (4, "in 4 vmapped lanes (--lanes 4, the layout before)"),
-            (1, "in one lane (--lanes 1, all vmapped together)"),
-        ]:
-            lane, _ = training_rate(
-                paper_config(algo, 5, lanes=lanes), args.steps // 3, args.warmup
-            )
-            print(
-                f"       5 seeds {label}: {5 * lane:8.1f} seed-steps/s ({5 * lane / one:.2f}x "
-                f"one seed); {jax.local_device_count()} devices"
-            )
-        for seeds in args.one_lane_seeds:
-            lane, _ = training_rate(
-                paper_config(algo, seeds, lanes=1), max(args.steps // 10, 100), args.warmup
-            )
-            print(
-                f"       {seeds} seeds in one lane: {seeds * lane:8.1f} seed-steps/s "
-                f"({seeds * lane / one:.2f}x one seed) on {jax.devices()[0].platform}"
-            )
         if algo == "adarl":
             for label, config in [
                 ("truncation, retain test off", {"retain_tolerance": None}),
                 ("truncation, retain test on ", {"retain_tolerance": 0.01}),
                 ("truncation, 1 test sample  ", {"retain_tolerance": 0.01, "retain_samples": 1}),
             ]:
-                seconds, share = truncation_cost(run, one, **config)
+                seconds, share = truncation_cost(learner, one, **config)
                 print(
                     f"       {label}: {seconds * 1000:.1f} ms = {100 * share:.4f}% of the "
-                    f"training time between truncations (d_t = {run.config.truncate_every})"
+                    f"training time between truncations (d_t = {learner.config.truncate_every})"
                 )
     masked, compact = update_cost(64, 7), update_cost(7, 7)
     print(
