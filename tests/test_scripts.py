@@ -65,7 +65,7 @@ EXPERIMENTS = ROOT / "docs" / "experiments"
 
 def _sweep(root: Path, task: str, unit: str, algo: str, seeds=(0, 1, 2), **kwargs) -> Path:
     """A run of the sweep layout the experiment scripts read: SWEEP/<task>/<unit>/seeds-a-b."""
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     name = f"seeds-{seeds[0]}-{seeds[-1]}"
     return write_run(root / task / unit, name, algo=algo, task=task, seeds=seeds, **kwargs)

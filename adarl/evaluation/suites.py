@@ -237,9 +237,9 @@ def aggregate(
     summaries: pd.DataFrame, confidence: float = 0.95
 ) -> dict[str, tuple[float, float, float]]:
     """Mean over seeds of the worst-case and of the average return, each with its Student-t
-    interval over seeds x̄ ± t_{(1+c)/2, n−1} · s/√n (`adarl.evaluation.stats.mean_ci`; NaN bounds
+    interval over seeds x̄ ± t_{(1+c)/2, n−1} · s/√n (`adarl.stats.mean_ci`; NaN bounds
     for one seed): {"worst": (point, low, high), "average": (...)}."""
-    from adarl.evaluation import stats
+    from adarl import stats
 
     out = {}
     for column in ("worst", "average"):

@@ -16,7 +16,7 @@ evaluation. And the true policy sizes: `n_params` over the full-rank factorised 
 compacted width.
 
 Self-contained on purpose (NumPy, SciPy, the standard library): it runs without adarl and is
-an independent check of `adarl.evaluation.stats` (`welch_difference_ci`,
+an independent check of `adarl.stats` (`welch_difference_ci`,
 `minimum_detectable_difference`, `seeds_per_arm`, written after this script), which give the same
 847 / 32 (Hopper) and 539 / 14 (Walker2d) for AdaRL − SAC. The later experiment scripts
 (mechanism.py, physics_power.py, paper_schedule.py) use adarl's functions.

@@ -149,13 +149,13 @@ def test_worst_case_and_average_of_a_constructed_table():
 @pytest.fixture(scope="module")
 def hopper_run(tmp_path_factory):
     pytest.importorskip("mujoco")
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     return write_run(tmp_path_factory.mktemp("suite"), "r", seeds=(0, 1))
 
 
 def test_parallel_result_equals_serial(hopper_run, monkeypatch):
-    from adarl.evaluation.runs import find_runs
+    from adarl.results.runs import find_runs
 
     small = suites.Suite(
         "tiny", "hopper", (suites.Range("floor_friction", 0.5, 3.0), suites.Range("torso_mass", 0.5, 3.0)),
@@ -174,7 +174,7 @@ def test_parallel_result_equals_serial(hopper_run, monkeypatch):
 
 def test_ray_backend_equals_serial(hopper_run, monkeypatch, local_ray_turn):
     pytest.importorskip("ray")
-    from adarl.evaluation.runs import find_runs
+    from adarl.results.runs import find_runs
 
     runs = find_runs([hopper_run])
     kwargs = dict(max_steps=20, progress=False, episodes=1)
