@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from adarl import stats
+from adarl.evaluation import suites
 from adarl.report import common, figures, tables
 from adarl.report.common import (
     ReportOptions,
@@ -21,6 +23,27 @@ from adarl.report.common import (
 )
 from adarl.results import collect
 from adarl.results.runs import Run, sort_methods, sort_tasks
+
+
+def worst_and_average(
+    summaries: pd.DataFrame, confidence: float = 0.95
+) -> dict[str, tuple[float, float, float]]:
+    """Mean over seeds of the worst-case and of the average return, each with its Student-t
+    interval over seeds x̄ ± t_{(1+c)/2, n−1} · s/√n (`adarl.stats.mean_ci`; NaN bounds
+    for one seed): {"worst": (point, low, high), "average": (...)}."""
+    out = {}
+    for column in ("worst", "average"):
+        ci = stats.mean_ci(summaries[column].to_numpy(float), confidence)
+        out[column] = (ci.point, ci.low, ci.high)
+    return out
+
+
+def heatmap_grid(table: pd.DataFrame, x: str, y: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x values, y values, mean return over seeds of each seed's point mean, shape (ny, nx))
+    of a two-parameter suite's table."""
+    means = suites.point_means(table)
+    cells = means.groupby([f"p_{y}", f"p_{x}"])["return"].mean().unstack()
+    return cells.columns.to_numpy(float), cells.index.to_numpy(float), cells.to_numpy(float)
 
 
 def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str]) -> Section:
@@ -82,8 +105,6 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
     """Worst-case and average return over each robustness suite's grid (`adarl evaluate
     --suite`), mean over seeds with bootstrap intervals; a heatmap per two-parameter suite and,
     for suites over the training parameters, return against the size of the perturbation."""
-    from adarl.evaluation import suites
-
     found: dict[tuple[str, str, str], list[tuple[pd.DataFrame, pd.DataFrame]]] = {}
     for r in runs:
         for ev in collect.evaluations(r):
@@ -104,7 +125,7 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
     rows, files = [], []
     for task, name, method in keys:
         summary = pd.concat([s for s, _ in found[(task, name, method)]], ignore_index=True)
-        estimate = suites.aggregate(summary, conf)
+        estimate = worst_and_average(summary, conf)
         rows.append(
             {
                 "task": task,
@@ -121,7 +142,7 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
             table = pd.concat([t for _, t in found[(task, name, method)]], ignore_index=True)
             x, y = suite.ranges[1].param, suite.ranges[0].param
             fig = figures.suite_heatmap(
-                *suites.heatmap_grid(table, x, y), x, y, f"{task}, {name}: {method}"
+                *heatmap_grid(table, x, y), x, y, f"{task}, {name}: {method}"
             )
             files += common.save_figure(folder, fig, f"suite_{task}_{name}_{method}")
     size_files, size_text = size_curves(found, keys, folder, options, colours)
@@ -155,7 +176,6 @@ def size_curves(
     """Return against the size of the perturbation (`adarl.report.perturbation`) for every
     task × suite whose parameters all have a training range: one figure and one table each,
     `figures/robustness_size_<task>_<suite>`, `tables/robustness_size_<task>_<suite>.csv`."""
-    from adarl.evaluation import suites
     from adarl.report import perturbation
 
     curves: dict[tuple[str, str], list[pd.DataFrame]] = {}
