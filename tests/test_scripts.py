@@ -129,7 +129,7 @@ def test_recheck_runs_on_a_copy_of_the_committed_tables(tmp_path):
 def test_recheck_welch_power_agrees_with_adarls(monkeypatch, n_x, n_y):
     """recheck.py averages Welch's power over random sample variances; adarl's `welch_power`
     integrates it by quadrature on χ² quantiles. Two methods, one number."""
-    from adarl.evaluation import stats
+    from adarl import stats
 
     monkeypatch.syspath_prepend(str(EXPERIMENTS))
     import recheck

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats as st
 
-from adarl.evaluation import stats
+from adarl import stats
 
 HERE = Path(__file__).resolve().parent
 ROWS = HERE / "table1-ant-humanoid" / "rows"
