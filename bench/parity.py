@@ -47,9 +47,9 @@ configure_xla()  # inherited by the `adarl train` subprocess
 
 import numpy as np  # noqa: E402
 
+from adarl import stats  # noqa: E402
 from adarl.algos.flags import parse_int_list  # noqa: E402
 from adarl.errors import UsageError  # noqa: E402
-from adarl.evaluation import stats  # noqa: E402
 from adarl.files import atomic_write_bytes, atomic_write_text  # noqa: E402
 from adarl.runs.layout import EVAL_CSV  # noqa: E402
 from adarl.runs.logs import read_csv  # noqa: E402
@@ -364,7 +364,7 @@ def write_figure(path: Path, curves: dict[str, dict[int, list]], title: str) -> 
     import matplotlib
     from matplotlib.figure import Figure
 
-    from adarl.evaluation.figures import STYLE
+    from adarl.report.figures import STYLE
 
     with matplotlib.rc_context(STYLE):
         fig = Figure(figsize=(4.5, 2.8))

@@ -22,12 +22,15 @@ import argparse
 import copy
 import json
 import multiprocessing
+import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 HIDDEN = 256
+# the synthetic run folder is a test fixture (tests/synthetic_runs.py), imported by path
+TESTS = Path(__file__).resolve().parent.parent / "tests"
 
 
 def step_rate(task: str, dynamics: str, policy_path: str, steps: int) -> int:
@@ -61,11 +64,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--steps", type=int, default=20_000, help="steps per worker (stepping)")
     args = parser.parse_args(argv)
 
+    sys.path.insert(0, str(TESTS))
+    from synthetic_runs import policy_arrays, write_run
+
     from adarl.evaluation import suites
     from adarl.evaluation.parallel import run_units
-    from adarl.evaluation.runs import find_runs
-    from adarl.evaluation.synthetic import policy_arrays, write_run
     from adarl.policy import save
+    from adarl.results.runs import find_runs
     from adarl.runs.checkpoints import file_sha256, policy_files, select_checkpoint
 
     suite = suites.get_suite(args.suite, args.task)

@@ -43,8 +43,9 @@ def test_a_read_only_folder_is_found_by_its_probe(tmp_path, monkeypatch):
     "umask, file_mode, dir_mode", [(0o077, 0o600, 0o700), (0o022, 0o644, 0o755)]
 )
 def test_every_file_and_folder_follows_the_umask(umask, file_mode, dir_mode, tmp_path, capsys):
+    from synthetic_runs import write_run
+
     from adarl.cli.main import main
-    from adarl.evaluation.synthetic import write_run
 
     old = os.umask(umask)
     try:  # a run folder (config, CSVs, checkpoints built in a temp folder), an export, a report

@@ -12,14 +12,23 @@ import adarl
 PACKAGE = Path(adarl.__file__).parent
 # lowest first; a module may import from its own layer and the layers before it
 LAYERS = [
-    {"__init__", "__version__", "errors", "runtime", "files", "policy", "cluster", "schedules"},
+    # stats: the statistics of comparisons (NumPy and SciPy), imports no adarl module
+    {"__init__", "__version__", "errors", "runtime", "files", "policy", "cluster", "schedules"}
+    | {"stats"},
     {"envs", "device"},  # device: the same tasks as pure JAX functions (MJX)
     {"lowrank"},  # the public rank-adaptation module: JAX and optax only, imports no adarl module
     {"nets"},
     {"algos"},
     {"runs"},
     {"train"},
-    {"evaluation", "theory"},
+    # results: reading finished run folders into tables (pandas) for everything after training.
+    # It needs more than the run format's ONLY allows (the NumPy policy, the config-flag parser)
+    # and the training loop never reads a run back, so it sits above train, not inside runs.
+    {"results"},
+    # evaluation: the engine that rolls policies out under perturbed physics; export: a policy
+    # out of a run as a NumPy file or a video
+    {"evaluation", "export", "theory"},
+    {"report"},  # tables, figures, statistics sections, the end-of-training summary
     {"sweeps"},
     {"cli"},
 ]
@@ -28,6 +37,9 @@ EXEMPT = {("__init__", "envs")}
 # of the layers below it, the run format reads only the ground floor and the algorithm registry
 # (JAX-free: it turns a config.yaml back into a config), never the environments or the maths
 ONLY = {"runs": {"__init__", "__version__", "errors", "files", "algos.registry"}}
+# reading run folders needs the run format, the algorithm registry and config flags (JAX-free)
+# and the NumPy policy, never the environments, the networks, the maths or the training loop
+ONLY["results"] = ONLY["runs"] | {"policy", "algos.flags", "runs"}
 
 
 def _layer(part: str) -> int:

@@ -65,7 +65,7 @@ EXPERIMENTS = ROOT / "docs" / "experiments"
 
 def _sweep(root: Path, task: str, unit: str, algo: str, seeds=(0, 1, 2), **kwargs) -> Path:
     """A run of the sweep layout the experiment scripts read: SWEEP/<task>/<unit>/seeds-a-b."""
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     name = f"seeds-{seeds[0]}-{seeds[-1]}"
     return write_run(root / task / unit, name, algo=algo, task=task, seeds=seeds, **kwargs)
@@ -120,3 +120,21 @@ def test_recheck_runs_on_a_copy_of_the_committed_tables(tmp_path):
     made = (copy / "recheck.md").read_text()
     assert "## Comparisons" in made and "## What cannot be recomputed" in made
     assert "| repro-hopper |" in made or "repro-hopper" in made
+    # the committed report is what the script writes (timing line aside)
+    committed = (EXPERIMENTS / "recheck.md").read_text()
+    assert made.split("\n")[7:] == committed.split("\n")[7:]
+
+
+@pytest.mark.parametrize(("n_x", "n_y"), [(3, 3), (5, 3), (5, 5), (12, 9)])
+def test_recheck_welch_power_agrees_with_adarls(monkeypatch, n_x, n_y):
+    """recheck.py averages Welch's power over random sample variances; adarl's `welch_power`
+    integrates it by quadrature on χ² quantiles. Two methods, one number."""
+    from adarl import stats
+
+    monkeypatch.syspath_prepend(str(EXPERIMENTS))
+    import recheck
+
+    ours = recheck.detectable(1000.0, n_x, n_y)
+    theirs = stats.welch_minimum_detectable_difference(1000.0, 1000.0, n_x, n_y)
+    assert ours == pytest.approx(theirs, rel=5e-3)
+    assert recheck.power(theirs, 1000.0, n_x, n_y) == pytest.approx(0.8, abs=3e-3)

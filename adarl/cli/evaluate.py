@@ -114,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
         summarise,
         write_evaluation,
     )
-    from adarl.evaluation.runs import find_runs
     from adarl.files import check_writable_file
+    from adarl.results.runs import find_runs
 
     if args.suite is not None:
         return run_suite_command(args)
@@ -159,8 +159,8 @@ def run_suite_command(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from adarl.evaluation import suites
-    from adarl.evaluation.runs import find_runs
     from adarl.files import check_writable_file
+    from adarl.results.runs import find_runs
     from adarl.runs.layout import EVALUATIONS_DIR, SUITES_DIR
 
     mixed = [

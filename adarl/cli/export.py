@@ -23,8 +23,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from adarl.evaluation.export import export_policy
-    from adarl.evaluation.runs import load_run
+    from adarl.export.policy import export_policy
+    from adarl.results.runs import load_run
     from adarl.runs.checkpoints import policy_files, select_checkpoint
 
     run_ = load_run(args.run_dir)

@@ -40,9 +40,9 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from adarl.evaluation import grid
-    from adarl.evaluation.play import check_video_path, play, prepare_backend
-    from adarl.evaluation.runs import load_run
+    from adarl.export.video import check_video_path, play, prepare_backend
     from adarl.files import check_writable_file
+    from adarl.results.runs import load_run
     from adarl.runs.checkpoints import policy_file, policy_files, select_checkpoint
 
     prepare_backend()  # before anything imports MuJoCo

@@ -73,8 +73,9 @@ def command_line(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from adarl.evaluation.report import ReportOptions, build_report
     from adarl.files import check_writable_dir
+    from adarl.report.build import build_report
+    from adarl.report.common import ReportOptions
 
     check_writable_dir(args.out)  # before reading any run
     options = ReportOptions(

@@ -277,12 +277,13 @@ def wants_report(flag: bool | None, preset: str | None) -> bool:
 def finish(run_dir: Path, wall_seconds: float, report: bool | None, preset: str | None) -> None:
     """The end-of-training summary, after the report when one is asked for (`--report`, or
     a preset in `REPORT_PRESETS`)."""
-    from adarl.evaluation.summary import training_summary
+    from adarl.report.summary import training_summary
     from adarl.runs.layout import REPORT_DIR
 
     report_dir = None
     if wants_report(report, preset):
-        from adarl.evaluation.report import ReportOptions, build_report
+        from adarl.report.build import build_report
+        from adarl.report.common import ReportOptions
 
         report_dir = run_dir / REPORT_DIR
         command = shlex.join(["adarl", "report", str(run_dir), "--out", str(report_dir)])

@@ -25,8 +25,8 @@ from adarl.envs.tasks import env_options
 from adarl.errors import UsageError
 from adarl.evaluation import grid
 from adarl.evaluation.parallel import run_units
-from adarl.evaluation.runs import Run
 from adarl.files import atomic_write_json, atomic_write_text
+from adarl.results.runs import Run
 from adarl.runs.checkpoints import policy_files, select_checkpoint
 from adarl.runs.layout import EVALUATIONS_DIR, checkpoint_step
 

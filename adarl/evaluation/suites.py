@@ -233,29 +233,6 @@ def seed_summary(table: pd.DataFrame, suite: str) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
 
 
-def aggregate(
-    summaries: pd.DataFrame, confidence: float = 0.95
-) -> dict[str, tuple[float, float, float]]:
-    """Mean over seeds of the worst-case and of the average return, each with its Student-t
-    interval over seeds x̄ ± t_{(1+c)/2, n−1} · s/√n (`adarl.evaluation.stats.mean_ci`; NaN bounds
-    for one seed): {"worst": (point, low, high), "average": (...)}."""
-    from adarl.evaluation import stats
-
-    out = {}
-    for column in ("worst", "average"):
-        ci = stats.mean_ci(summaries[column].to_numpy(float), confidence)
-        out[column] = (ci.point, ci.low, ci.high)
-    return out
-
-
-def heatmap_grid(table: pd.DataFrame, x: str, y: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x values, y values, mean return over seeds of each seed's point mean, shape (ny, nx))
-    of a two-parameter suite's table."""
-    means = point_means(table)
-    cells = means.groupby([f"p_{y}", f"p_{x}"])["return"].mean().unstack()
-    return cells.columns.to_numpy(float), cells.index.to_numpy(float), cells.to_numpy(float)
-
-
 # ----------------------------------------------------------------------------- running
 def suite_spec(suite: Suite, episodes: int | None = None, **kwargs):
     """The `EvalSpec` of a suite (its grid as swept axes over its base dynamics)."""

@@ -84,7 +84,7 @@ def write_config(run_dir: Path, config, algo: str, command: str, fork: dict | No
 
 def write_config_values(run_dir: str | os.PathLike, values: dict) -> None:
     """config.yaml holding `values` in their order (`write_config` builds them for a trainer's
-    config; the synthetic runs of adarl.evaluation.synthetic give their own)."""
+    config; the synthetic runs of tests/synthetic_runs.py give their own)."""
     atomic_write_text(Path(run_dir) / CONFIG_FILE, yaml.safe_dump(values, sort_keys=False))
 
 

@@ -38,8 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from adarl.errors import UsageError
-from adarl.evaluation.summary import duration
 from adarl.files import read_json
+from adarl.report.summary import duration
 from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.backends import thread_env

@@ -138,7 +138,7 @@ def _train(args: argparse.Namespace, run_dir: Path, resume: bool, command: str) 
     """Train (or resume, or fork then train) the unit into `run_dir`, then print the summary
     `adarl train` prints."""
     from adarl.algos import registry
-    from adarl.evaluation.summary import training_summary
+    from adarl.report.summary import training_summary
     from adarl.runs import folder, tracking
     from adarl.train import fork
     from adarl.train.trainers import trainer

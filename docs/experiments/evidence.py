@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import scipy.stats
 
-from adarl.evaluation import stats
+from adarl import stats
 
 HERE = Path(__file__).resolve().parent
 HOP = 1500.0  # a 3M Hopper score above this is a seed that hops (scores are ~440 or 2,000–3,200)

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from adarl.evaluation import stats
-from adarl.evaluation.collect import last_k_scores
-from adarl.evaluation.runs import load_run
+from adarl import stats
+from adarl.results.collect import last_k_scores
+from adarl.results.runs import load_run
 
 LAYERS = ("actor_1", "q1_1", "q2_1")
 LAST_K = 5  # the report's default score: the mean of the last 5 evaluations

@@ -25,8 +25,9 @@ import scipy.stats
 from matplotlib.figure import Figure
 from mechanism import LAYERS, TARGET, paired_line, prefix_rows, rows
 
-from adarl.evaluation import figures, stats
-from adarl.evaluation.collect import last_evaluations, read_table
+from adarl import stats
+from adarl.report import figures
+from adarl.results.collect import last_evaluations, read_table
 
 ARMS = {"AdaRL": "adarl_rank_rule-cumulative", "control": "adarl-control-eq5", "SAC": "sac"}
 LAST_K = 5  # the report's default score: the mean of the last 5 evaluations

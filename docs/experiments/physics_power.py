@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from adarl.evaluation import stats
-from adarl.evaluation.collect import last_k_scores
-from adarl.evaluation.runs import load_run
+from adarl import stats
+from adarl.results.collect import last_k_scores
+from adarl.results.runs import load_run
 
 ARMS = {
     "consistent": "sac_physics-consistent",

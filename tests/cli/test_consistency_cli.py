@@ -8,10 +8,10 @@ import os
 import mujoco  # noqa: F401  (imported with this process's MUJOCO_GL, before `adarl play` sets one)
 import pytest
 import yaml
+from synthetic_runs import write_run
 
 from adarl.algos import registry
 from adarl.cli.main import main
-from adarl.evaluation.synthetic import write_run
 
 
 def error_line(capsys) -> str:

@@ -8,8 +8,8 @@ import os
 
 import pytest
 from cli_errors import one_line_exit_2
+from synthetic_runs import write_run, write_sweep
 
-from adarl.evaluation.synthetic import write_run, write_sweep
 from adarl.runs import checkpoints
 
 

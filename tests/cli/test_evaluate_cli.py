@@ -4,9 +4,9 @@ import json
 
 import pandas as pd
 import pytest
+from synthetic_runs import write_run
 
 from adarl.cli.main import main
-from adarl.evaluation.synthetic import write_run
 
 pytest.importorskip("mujoco")
 

@@ -1,9 +1,9 @@
 """`adarl export`: one seed's policy as a NumPy-only file, with parameter counts."""
 
 import numpy as np
+from synthetic_runs import write_run
 
 from adarl.cli.main import main
-from adarl.evaluation.synthetic import write_run
 from adarl.policy import load
 
 
@@ -38,7 +38,7 @@ def test_export_counts_full_rank_at_the_configured_width_even_from_old_policy_fi
     """Policy files of earlier versions recorded `n_params_full` at the compacted width (the
     largest rank across seeds); the full-rank size comes from the shapes instead: obs 11 → 16,
     a 16·16 + 16·16 bottleneck with bias, 16 → 3, counted by hand."""
-    from adarl.evaluation.synthetic import policy_arrays
+    from synthetic_runs import policy_arrays
 
     arrays = policy_arrays(11, 3, hidden=16, rank=2)
     arrays["n_params_full"] = np.array(999)  # what an older adarl may have written

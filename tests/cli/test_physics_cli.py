@@ -11,7 +11,7 @@ from adarl.algos import registry
 from adarl.cli.main import main
 from adarl.errors import UsageError
 from adarl.evaluation import evaluate
-from adarl.evaluation.runs import load_run
+from adarl.results.runs import load_run
 from adarl.runs import checkpoints
 from adarl.runs.logs import read_csv
 from adarl.sweeps import spec

@@ -63,7 +63,7 @@ def test_out_that_is_a_file_or_not_writable_is_one_line_exit_2(algo, tmp_path, c
     "command", ["train", "sweep", "evaluate", "export", "play", "report", "theory"]
 )
 def test_an_output_root_cannot_write_is_one_line_exit_2(command, tmp_path, capsys, monkeypatch):
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))
     monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
@@ -84,7 +84,7 @@ def test_an_output_root_cannot_write_is_one_line_exit_2(command, tmp_path, capsy
 
 
 def test_a_missing_output_folder_is_created_and_the_probe_leaves_nothing(tmp_path):
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     run = write_run(tmp_path / "runs", "r", seeds=(0,))
     assert main(["export", str(run), "--out", str(tmp_path / "new" / "dir" / "p.npz")]) == 0
@@ -104,7 +104,7 @@ def test_sweep_dry_run_checks_out(tmp_path, capsys):
 
 @pytest.mark.parametrize("command", ["evaluate", "export", "play"])
 def test_an_output_file_under_a_file_is_one_line_exit_2(command, tmp_path, capsys, monkeypatch):
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     # `adarl play` sets these for MuJoCo; monkeypatch restores them afterwards
     monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))

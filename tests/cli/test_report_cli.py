@@ -3,10 +3,10 @@ line on stderr, nothing half-written)."""
 
 import pandas as pd
 import pytest
+from synthetic_runs import write_run, write_sweep
 
 from adarl.cli.main import main
-from adarl.evaluation import report
-from adarl.evaluation.synthetic import write_run, write_sweep
+from adarl.report import build, common
 
 TORSO = [0.2, 0.4, 0.6]
 
@@ -218,7 +218,7 @@ def test_rerun_replaces_a_previous_report(tmp_path, no_figures):
 @pytest.fixture
 def no_figures(monkeypatch):
     """Skip drawing (the slow part) in tests about folders, not figures."""
-    monkeypatch.setattr(report.common, "save_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(common, "save_figure", lambda folder, fig, stem: [])
 
 
 def _fails(argv, capsys, fragment):
@@ -275,7 +275,7 @@ def test_a_failure_midway_leaves_the_previous_report_untouched(tmp_path, monkeyp
     def boom(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(report.build, "policy_size_section", boom)
+    monkeypatch.setattr(build, "policy_size_section", boom)
     with pytest.raises(RuntimeError):
         main(["report", str(tmp_path / "runs"), "--out", str(out), "--bootstrap-reps", "20"])
     assert (out / "index.md").read_text() == before

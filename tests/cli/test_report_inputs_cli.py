@@ -6,10 +6,10 @@ numpy warning or a NaN statistic from a damaged value."""
 import math
 
 import pytest
+from synthetic_runs import write_run
 
+from adarl import stats
 from adarl.cli.main import main
-from adarl.evaluation import stats
-from adarl.evaluation.synthetic import write_run
 
 
 def _report(tmp_path, capsys):

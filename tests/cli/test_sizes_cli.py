@@ -9,10 +9,10 @@ import socket
 import subprocess
 
 import pytest
+from synthetic_runs import write_run
 
 from adarl.algos import registry
 from adarl.cli.main import main
-from adarl.evaluation.synthetic import write_run
 
 ONE_PER_TRAINER = [
     next(a for a in registry.ALGOS if registry.get(a).config_class is cls)

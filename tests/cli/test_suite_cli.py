@@ -5,10 +5,10 @@ import json
 
 import pandas as pd
 import pytest
+from synthetic_runs import write_run
 
 from adarl.cli.main import main
 from adarl.evaluation import suites
-from adarl.evaluation.synthetic import write_run
 
 pytest.importorskip("mujoco")
 

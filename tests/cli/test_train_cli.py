@@ -204,10 +204,10 @@ def test_tasks_shows_the_adarl_default_budget(capsys):
 
 
 def test_report_flag_writes_the_report_and_the_summary_names_it(tmp_path, capsys, monkeypatch):
-    from adarl.evaluation import report
+    from adarl.report import common
 
     # drawing: tested apart
-    monkeypatch.setattr(report.common, "save_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(common, "save_figure", lambda folder, fig, stem: [])
     run_dir = tmp_path / "r"
     argv = ["train", "--preset", "smoke", "--algo", "sac", "--out", str(run_dir), "--no-progress"]
     assert main([*argv, "--report"]) == 0
@@ -231,10 +231,10 @@ def test_resuming_a_run_of_a_reporting_preset_writes_its_report(tmp_path, monkey
     import sys
 
     from adarl.cli import train as train_cli
-    from adarl.evaluation import report
+    from adarl.report import common
 
     # drawing: tested apart
-    monkeypatch.setattr(report.common, "save_figure", lambda folder, fig, stem: [])
+    monkeypatch.setattr(common, "save_figure", lambda folder, fig, stem: [])
     run_dir = tmp_path / "r"
     argv = ["train", "--preset", "smoke", "--algo", "sac", "--out", str(run_dir), "--no-progress"]
     monkeypatch.setattr(sys, "argv", ["adarl", *argv])  # what the run records as its command

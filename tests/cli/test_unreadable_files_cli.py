@@ -6,9 +6,9 @@ import os
 
 import pytest
 from cli_errors import one_line_exit_2
+from synthetic_runs import write_run
 
 from adarl.cli.main import main
-from adarl.evaluation.synthetic import write_run
 
 
 def _commands(run, tmp_path):

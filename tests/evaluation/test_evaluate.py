@@ -7,14 +7,14 @@ import pickle
 import numpy as np
 import pandas as pd
 import pytest
+from synthetic_runs import policy_arrays, write_run
 
 from adarl.errors import UsageError
 from adarl.evaluation import evaluate, parallel
-from adarl.evaluation.collect import final_scores
-from adarl.evaluation.export import export_policy
-from adarl.evaluation.runs import find_runs, load_run
-from adarl.evaluation.synthetic import policy_arrays, write_run
+from adarl.export.policy import export_policy
 from adarl.policy import load, save
+from adarl.results.collect import final_scores
+from adarl.results.runs import find_runs, load_run
 from adarl.runs.checkpoints import policy_file
 
 pytest.importorskip("mujoco")

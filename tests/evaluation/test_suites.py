@@ -5,7 +5,6 @@ import itertools
 import numpy as np
 import pandas as pd
 import pytest
-import scipy.stats
 
 from adarl.errors import UsageError
 from adarl.evaluation import grid, suites
@@ -135,27 +134,18 @@ def test_worst_case_and_average_of_a_constructed_table():
         i, j = np.unravel_index(m.argmin(), m.shape)
         assert row.worst_point == f"fixed:a={(0.1, 0.2, 0.3)[i]},b={(1, 2)[j]}"
         assert row.points == 6 and row.episodes == 2
-    agg = suites.aggregate(summary)
-    worst = [m.min() for m in means.values()]
-    expected = scipy.stats.ttest_1samp(worst, 0.0).confidence_interval(0.95)
-    assert agg["worst"] == pytest.approx((np.mean(worst), expected.low, expected.high))
-    one = suites.aggregate(summary.iloc[:1])  # one seed: a mean, no interval
-    assert one["average"][0] == pytest.approx(means[0].mean()) and np.isnan(one["average"][1])
-    x, y, cells = suites.heatmap_grid(constructed_table(means), "b", "a")
-    assert list(x) == [1, 2] and list(y) == [0.1, 0.2, 0.3]
-    np.testing.assert_allclose(cells, (means[0] + means[3]) / 2)
 
 
 @pytest.fixture(scope="module")
 def hopper_run(tmp_path_factory):
     pytest.importorskip("mujoco")
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     return write_run(tmp_path_factory.mktemp("suite"), "r", seeds=(0, 1))
 
 
 def test_parallel_result_equals_serial(hopper_run, monkeypatch):
-    from adarl.evaluation.runs import find_runs
+    from adarl.results.runs import find_runs
 
     small = suites.Suite(
         "tiny", "hopper", (suites.Range("floor_friction", 0.5, 3.0), suites.Range("torso_mass", 0.5, 3.0)),
@@ -174,7 +164,7 @@ def test_parallel_result_equals_serial(hopper_run, monkeypatch):
 
 def test_ray_backend_equals_serial(hopper_run, monkeypatch, local_ray_turn):
     pytest.importorskip("ray")
-    from adarl.evaluation.runs import find_runs
+    from adarl.results.runs import find_runs
 
     runs = find_runs([hopper_run])
     kwargs = dict(max_steps=20, progress=False, episodes=1)

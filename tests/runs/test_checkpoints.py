@@ -130,7 +130,7 @@ def test_disk_full_during_a_checkpoint_is_one_line_and_keeps_the_previous(tmp_pa
 
 
 def test_selecting_a_checkpoint_and_its_policy_files(tmp_path):
-    from adarl.evaluation.synthetic import write_run
+    from synthetic_runs import write_run
 
     run = write_run(tmp_path, "a", seeds=(3, 5), total_steps=400)
     ckpt = checkpoints.select_checkpoint(run)

@@ -12,7 +12,7 @@ from adarl import __version__
 from adarl.algos import rnac_config, sac_config
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError
-from adarl.evaluation import report
+from adarl.report.scores import environment_section
 from adarl.runs import provenance
 from adarl.train import rnac_learner, sac_learner, trainers
 
@@ -100,7 +100,7 @@ def test_report_lists_environments_and_warns(tmp_path, capsys):
         runs.append(SimpleNamespace(path=path))
     (tmp_path / "out" / "tables").mkdir(parents=True)
     notes = []
-    section = report.environment_section(runs, tmp_path / "out", notes)
+    section = environment_section(runs, tmp_path / "out", notes)
     line = f"runs were made with different mujoco versions: 4.0.0 ({runs[0].path}); 3.2.0 ({runs[1].path})"
     assert notes == [f"Warning: {line}."]
     assert capsys.readouterr().err == f"adarl: warning: {line}\n"
@@ -218,7 +218,7 @@ def test_the_trainer_records_each_resume_and_the_report_warns(tmp_path, monkeypa
 
     (tmp_path / "out" / "tables").mkdir(parents=True)
     notes = []
-    report.environment_section([SimpleNamespace(path=run)], tmp_path / "out", notes)
+    environment_section([SimpleNamespace(path=run)], tmp_path / "out", notes)
     line = (
         f"run {run} was resumed with other code: "
         f"adarl {__version__} ({'a' * 12}) → {__version__} ({'c' * 12}) from step 0"

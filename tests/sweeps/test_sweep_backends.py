@@ -6,7 +6,7 @@ import json
 import pytest
 
 from adarl.cli.main import main
-from adarl.evaluation.runs import find_runs
+from adarl.results.runs import find_runs
 from adarl.sweeps import backends
 
 UNITS = ("hopper/adarl/seeds-0-1", "hopper/sac/seeds-0-1")

@@ -1,0 +1,229 @@
+"""Table 1 on Ant and Humanoid at 300k steps (docs/experiments/table1-ant-humanoid.md): the raw
+rows out of the sweep, and the pre-registered analysis from those rows only.
+
+    python docs/experiments/table1_ant_humanoid.py export results/table1-ant-humanoid
+    python docs/experiments/table1_ant_humanoid.py report          # prints the report's tables
+
+`export` copies each unit's eval.csv, truncations.csv and episodes.csv (gzip) to
+docs/experiments/table1-ant-humanoid/rows/<task>/<method>/ (never checkpoints), so that `report`
+and any referee recompute every number from the repository. `report` follows the
+pre-registration: the score of a seed is the mean of its last 5 nominal evaluations, each
+evaluation the mean return of its episodes; the primary tests are AdaRL − SAC on each task,
+Welch's t-test, Holm over the two; beside each the inverted two-sample permutation interval and
+Welch's detectable difference at 80% power with its range over the pooled SD's 95% interval;
+AdaRL − each baseline (Parseval: the best of three by mean score, chosen after seeing the data)
+is exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
+A unit that has not reached the budget is reported as running and enters no test.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import io
+import shutil
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+from scipy import stats as st
+
+from adarl import stats
+
+HERE = Path(__file__).resolve().parent
+ROWS = HERE / "table1-ant-humanoid" / "rows"
+FILES = ("eval.csv", "truncations.csv", "episodes.csv")
+BUDGET = 300_000
+LAST_K = 5
+TASKS = ("ant", "humanoid")
+ACTION_DIM = {"ant": 8, "humanoid": 17}  # 2·d_a + 1: 17 and 35
+ADARL, SAC = "adarl", "sac"
+
+
+def export(sweep: Path, rows: Path = ROWS) -> list[Path]:
+    """Copy the raw rows of every unit of `sweep` (task/method/seeds-*/) to `rows`, gzipped."""
+    written = []
+    for unit in sorted(sweep.glob("*/*/seeds-*")):
+        task, method = unit.parts[-3], unit.parts[-2]
+        for name in FILES:
+            source = unit / name
+            if not source.is_file():
+                continue
+            target = rows / task / method / f"{unit.name}-{name}.gz"
+            target.parent.mkdir(parents=True, exist_ok=True)
+            tmp = target.with_suffix(".tmp")
+            with source.open("rb") as f, gzip.GzipFile(tmp, "wb", mtime=0) as g:
+                shutil.copyfileobj(f, g)
+            tmp.replace(target)
+            written.append(target)
+    return written
+
+
+def _read(path: Path) -> list[dict]:
+    with gzip.open(path, "rt", newline="") as f:
+        return list(csv.DictReader(io.StringIO(f.read())))
+
+
+def seed_scores(eval_rows: list[dict], k: int = LAST_K) -> tuple[dict[int, float], int]:
+    """Each seed's score, the mean over its last k nominal evaluations of each evaluation's
+    mean episode return, and the last step evaluated."""
+    returns = defaultdict(lambda: defaultdict(list))  # seed -> step -> returns
+    for r in eval_rows:
+        if r["dynamics"] == "nominal":
+            returns[int(r["seed"])][int(r["step"])].append(float(r["return"]))
+    scores, last = {}, 0
+    for seed, by_step in returns.items():
+        steps = sorted(by_step)[-k:]
+        scores[seed] = float(np.mean([np.mean(by_step[s]) for s in steps]))
+        last = max(last, steps[-1])
+    return scores, last
+
+
+def load(rows: Path = ROWS) -> dict:
+    """task -> method -> {"scores": {seed: score}, "last_step", "truncations": rows}."""
+    out = defaultdict(dict)
+    for method_dir in sorted(rows.glob("*/*")):
+        task, method = method_dir.parts[-2], method_dir.parts[-1]
+        scores, last, truncations = {}, BUDGET, []
+        for path in sorted(method_dir.glob("seeds-*-eval.csv.gz")):
+            s, step = seed_scores(_read(path))
+            scores |= s
+            last = min(last, step)
+        for path in sorted(method_dir.glob("seeds-*-truncations.csv.gz")):
+            truncations += _read(path)
+        out[task][method] = {"scores": scores, "last_step": last, "truncations": truncations}
+    return out
+
+
+def label(method: str) -> str:
+    return method.replace("_parseval_coef-", " ").replace("_sparse_width-", " w=")
+
+
+def compare(x: np.ndarray, y: np.ndarray) -> dict:
+    """Welch's interval and p, the inverted permutation interval and Welch's detectable
+    difference (with its range over the pooled SD's interval) for the difference x − y."""
+    ci = stats.welch_difference_ci(x, y)
+    sd = stats.pooled_sd(x, y)
+    return {
+        "difference": ci.point,
+        "welch": (ci.low, ci.high),
+        "p": float(st.ttest_ind(x, y, equal_var=False).pvalue),
+        "permutation": stats.two_sample_permutation_interval(x, y),
+        "sd": sd,
+        "detectable": stats.welch_minimum_detectable_difference(sd, sd, len(x), len(y)),
+        "range": stats.detectable_difference_range(sd, len(x), len(y)),
+    }
+
+
+def holm(p: list[float]) -> list[float]:
+    """Holm's step-down adjusted p-values."""
+    order = np.argsort(p)
+    adjusted, running = np.empty(len(p)), 0.0
+    for i, j in enumerate(order):
+        running = max(running, min(1.0, (len(p) - i) * p[j]))
+        adjusted[j] = running
+    return adjusted.tolist()
+
+
+def _num(x: float) -> str:
+    return "∞" if np.isinf(x) else f"{x:+,.0f}"
+
+
+def _row(name: str, c: dict, extra: str) -> str:
+    lo, hi = c["welch"]
+    perm = c["permutation"]
+    r_lo, r_hi = c["range"]
+    return (
+        f"| {name} | {c['difference']:+,.0f} | [{lo:+,.0f}, {hi:+,.0f}] | {c['p']:.3f} | {extra} "
+        f"| [{_num(perm.low)}, {_num(perm.high)}] | {c['sd']:,.0f} "
+        f"| {c['detectable']:,.0f} ({r_lo:,.0f}–{r_hi:,.0f}) |"
+    )
+
+
+def report(data: dict) -> list[str]:
+    lines = ["### Scores (mean of the last 5 nominal evaluations per seed)", ""]
+    lines += ["| task | method | seeds | last step | mean ± SD | per seed |", "| --- | --- | ---: | ---: | ---: | --- |"]  # fmt: skip
+    for task in TASKS:
+        for method, d in sorted(data.get(task, {}).items()):
+            v = np.array([d["scores"][s] for s in sorted(d["scores"])])
+            state = f"{d['last_step']:,}" + ("" if d["last_step"] >= BUDGET else " (running)")
+            per_seed = ", ".join(f"{x:,.0f}" for x in v)
+            spread = f"{v.mean():,.0f} ± {v.std(ddof=1):,.0f}" if v.size > 1 else "—"
+            lines.append(
+                f"| {task} | {label(method)} | {v.size} | {state} | {spread} | {per_seed} |"
+            )
+    lines.append("")
+
+    def finished(task, method):
+        d = data.get(task, {}).get(method)
+        return d is not None and d["last_step"] >= BUDGET and len(d["scores"]) >= 2
+
+    def arm(task, method):
+        d = data[task][method]["scores"]
+        return np.array([d[s] for s in sorted(d)])
+
+    head = [
+        "| comparison | difference | Welch 95% | Welch p | Holm p | permutation 95% | pooled SD "
+        "| detectable at 80% (range) |",
+        "| --- | ---: | --- | ---: | ---: | --- | ---: | ---: |",
+    ]
+    primary = [t for t in TASKS if finished(t, ADARL) and finished(t, SAC)]
+    lines += ["### Primary: AdaRL − SAC (Welch, Holm over the two tasks)", ""]
+    if len(primary) < len(TASKS):
+        waiting = ", ".join(t for t in TASKS if t not in primary)
+        lines += [f"Not computed until both tasks' AdaRL and SAC units finish ({waiting}: running).", ""]  # fmt: skip
+    else:
+        results = {t: compare(arm(t, ADARL), arm(t, SAC)) for t in TASKS}
+        adjusted = holm([results[t]["p"] for t in TASKS])
+        lines += head
+        for t, a in zip(TASKS, adjusted):
+            decision = "**detected**" if a < 0.05 else "not detected"
+            lines.append(_row(f"{t}: adarl − sac ({decision})", results[t], f"{a:.3f}"))
+        lines.append("")
+
+    lines += ["### Exploratory, uncorrected: AdaRL − each baseline", ""] + head
+    for task in TASKS:
+        if not finished(task, ADARL):
+            continue
+        parseval = [m for m in data[task] if m.startswith("sac-parseval") and finished(task, m)]
+        best = max(parseval, key=lambda m: arm(task, m).mean(), default=None)
+        for method in sorted(data[task]):
+            if method in (ADARL, SAC) or not finished(task, method):
+                continue
+            if method.startswith("sac-parseval") and method != best:
+                continue
+            name = label(method) + (" (best of 3, chosen after the data)" if method == best else "")
+            lines.append(_row(f"{task}: adarl − {name}", compare(arm(task, ADARL), arm(task, method)), "—"))  # fmt: skip
+    lines.append("")
+
+    lines += ["### Ranks the energy rule kept (AdaRL), per cut: min–max over seeds", ""]
+    lines += ["| task | layer | 2·d_a + 1 | " + " | ".join(f"cut {i}" for i in range(1, 5)) + " |"]
+    lines += ["| --- | --- | ---: |" + " ---: |" * 4]
+    for task in TASKS:
+        rows = data.get(task, {}).get(ADARL, {}).get("truncations", [])
+        by_layer = defaultdict(lambda: defaultdict(list))
+        for r in rows:
+            by_layer[r["layer"]][int(r["step"])].append(int(r["new_rank"]))
+        for layer, by_step in sorted(by_layer.items()):
+            cells = [f"{min(v)}–{max(v)}" for _, v in sorted(by_step.items())][:4]
+            cells += ["—"] * (4 - len(cells))
+            lines.append(f"| {task} | {layer} | {2 * ACTION_DIM[task] + 1} | " + " | ".join(cells) + " |")  # fmt: skip
+    lines.append("")
+    return lines
+
+
+def main(argv: list[str]) -> int:
+    if argv[:1] == ["export"] and len(argv) == 2:
+        written = export(Path(argv[1]))
+        print(f"wrote {len(written)} files under {ROWS}")
+        return 0
+    if argv[:1] == ["report"] and len(argv) in (1, 2):
+        print("\n".join(report(load(Path(argv[1]) if len(argv) == 2 else ROWS))))
+        return 0
+    print("usage: table1_ant_humanoid.py export SWEEP | report [ROWS]", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

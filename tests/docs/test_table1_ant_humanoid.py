@@ -1,0 +1,103 @@
+"""docs/experiments/table1_ant_humanoid.py: the raw rows out of a sweep and the pre-registered
+analysis from them. Expected values are computed here by hand from the rows the test writes."""
+
+import csv
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SCRIPT = Path(__file__).parents[2] / "docs/experiments/table1_ant_humanoid.py"
+
+
+@pytest.fixture(scope="module")
+def script():
+    spec = importlib.util.spec_from_file_location("table1_ant_humanoid", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _unit(root, task, method, returns, last_step=300_000, truncations=None):
+    """A unit whose seed s returns returns[s] + step/1e5 at every nominal evaluation."""
+    unit = root / task / method / "seeds-0-4"
+    unit.mkdir(parents=True)
+    with (unit / "eval.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["step", "seed", "dynamics", "episode", "return", "length"])
+        for step in range(10_000, last_step + 1, 10_000):
+            for seed, r in enumerate(returns):
+                for episode, noise in enumerate((-1.0, 1.0)):  # mean over episodes: r
+                    w.writerow([step, seed, "nominal", episode, r + step / 1e5 + noise, 1000])
+                w.writerow([step, seed, "perturbed", 0, -1e6, 10])  # not nominal: ignored
+    if truncations:
+        with (unit / "truncations.csv").open("w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"])
+            w.writerows(truncations)
+    (unit / "checkpoints").mkdir()  # never exported
+    return unit
+
+
+def test_scores_are_the_mean_of_the_last_five_nominal_evaluations(script, tmp_path):
+    _unit(tmp_path / "sweep", "ant", "sac", [100.0, 200.0])
+    script.export(tmp_path / "sweep", tmp_path / "rows")
+    exported = sorted(p.name for p in (tmp_path / "rows/ant/sac").iterdir())
+    assert exported == ["seeds-0-4-eval.csv.gz"]
+    data = script.load(tmp_path / "rows")
+    # last five evaluations at 260k..300k: mean of step/1e5 = 2.8
+    assert data["ant"]["sac"]["scores"] == pytest.approx({0: 102.8, 1: 202.8})
+    assert data["ant"]["sac"]["last_step"] == 300_000
+
+
+def test_holm_adjusts_step_down(script):
+    assert script.holm([0.01, 0.04]) == pytest.approx([0.02, 0.04])
+    assert script.holm([0.03, 0.02]) == pytest.approx([0.04, 0.04])
+    assert script.holm([0.5, 0.9]) == pytest.approx([1.0, 1.0])  # 2 × 0.5, capped at 1
+
+
+def test_report_runs_the_primary_tests_only_when_both_tasks_finished(script, tmp_path):
+    sweep = tmp_path / "sweep"
+    sac = [1000.0, 1100.0, 900.0, 1050.0, 950.0]
+    adarl = [2000.0, 2100.0, 1900.0, 2050.0, 1950.0]
+    _unit(sweep, "ant", "sac", sac)
+    _unit(sweep, "ant", "adarl", adarl, truncations=[[60_000, s, "actor", 64, 20 + s, 20 + s] for s in range(5)])  # fmt: skip
+    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-03", [500.0] * 4 + [600.0])
+    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-04", [700.0] * 4 + [800.0])
+    _unit(sweep, "humanoid", "sac", sac)
+    _unit(sweep, "humanoid", "adarl", adarl, last_step=120_000)
+    script.export(sweep, tmp_path / "rows")
+    lines = script.report(script.load(tmp_path / "rows"))
+    text = "\n".join(lines)
+    assert "Not computed until both tasks' AdaRL and SAC units finish (humanoid: running)" in text
+    assert "| humanoid | adarl | 5 | 120,000 (running) |" in text
+    # exploratory: only the best Parseval (1e-04, mean 720) against AdaRL
+    row = next(line for line in lines if line.startswith("| ant: adarl − sac-parseval"))
+    assert "1e-04 (best of 3" in row
+    assert f"{np.mean(adarl) - 720:+,.0f}" in row
+    assert not any("1e-03" in line and line.startswith("| ant: adarl") for line in lines)
+    assert "| ant | actor | 17 | 20–24 | — | — | — |" in text
+
+
+def test_report_detects_a_large_gap_on_both_tasks(script, tmp_path):
+    sweep = tmp_path / "sweep"
+    sac = np.array([1000.0, 1100.0, 900.0, 1050.0, 950.0])
+    for task in ("ant", "humanoid"):
+        _unit(sweep, task, "sac", list(sac))
+        _unit(sweep, task, "adarl", list(sac + 1000.0))
+    script.export(sweep, tmp_path / "rows")
+    lines = script.report(script.load(tmp_path / "rows"))
+    rows = [line for line in lines if line.startswith(("| ant: adarl − sac (", "| humanoid: adarl − sac ("))]  # fmt: skip
+    assert len(rows) == 2 and all("**detected**" in r for r in rows)
+    # equal SDs, identical shapes: difference exactly +1,000; Welch p from the t statistic by hand
+    t = 1000.0 / np.sqrt(2 * sac.var(ddof=1) / 5)
+    from scipy import stats
+
+    p = 2 * stats.t.sf(t, 8)  # equal variances and sizes: Welch's df is 8
+    assert "| +1,000 |" in rows[0] and f"| {p:.3f} | {min(1.0, 2 * p):.3f} |" in rows[0]
+
+
+def test_command_line(script, tmp_path, capsys):
+    assert script.main(["nonsense"]) == 2
+    assert "usage" in capsys.readouterr().err

@@ -1,0 +1,108 @@
+"""The end-of-training summary, from synthetic run folders."""
+
+import numpy as np
+import pandas as pd
+from synthetic_runs import write_run
+
+from adarl.report.summary import behaviour_line, duration, sweep_example, training_summary
+from adarl.results import collect
+from adarl.results.runs import load_run
+
+
+def test_duration():
+    assert [duration(s) for s in (0, 42.4, 187, 7500)] == ["0s", "42s", "3m07s", "2h05m"]
+
+
+def test_summary_of_an_adarl_run_has_returns_ranks_files_and_next_commands(tmp_path):
+    run_dir = write_run(tmp_path, "run", algo="adarl", seeds=(0, 1, 2), n_evals=7)
+    log = pd.read_csv(run_dir / "eval.csv")  # 7 evaluations of 2 episodes per seed
+    per_eval = log.groupby(["seed", "step"])["return"].mean().unstack()  # seeds × steps
+    recent = per_eval.iloc[:, -5:].mean(axis=1).to_numpy()  # the last 5 evaluations
+    final = per_eval.iloc[:, -1].to_numpy()
+    text = training_summary(run_dir, 125.0)
+    lines = text.splitlines()
+    assert lines[0] == "done: adarl on hopper, 3 seed(s) x 10,000 steps, wall time 2m05s"
+    assert lines[1].startswith(
+        f"nominal return: {recent.mean():.1f} ± {recent.std(ddof=1):.1f} (mean of the last 5 "
+        f"evaluation(s), steps {per_eval.columns[-5]:,}–10,000, 2 episode(s) each; seed 0: "
+        f"{recent[0]:.1f}"
+    )
+    assert lines[2].startswith(f"final checkpoint: {final.mean():.1f} ± {final.std(ddof=1):.1f}")
+    assert lines[3] == (
+        "what the final policies do: episodes last 1,000 of 1,000 steps on average, forward "
+        "distance not recorded (`adarl evaluate` records it): all 3 seeds stands or moves "
+        "(full length; the forward distance would tell which)"
+    )
+    assert f"  adarl evaluate {run_dir}   # records forward distance" in lines
+    ranks = collect.final_ranks(load_run(run_dir))
+    actor = ranks[ranks["layer"] == ranks["layer"].iloc[0]]["rank"]
+    assert f"{ranks['layer'].iloc[0]} {actor.mean():.1f}" in text
+    assert f"files: {run_dir}/" in text
+    assert f"  adarl report {run_dir} --out {run_dir}/report" in lines
+    assert f"  adarl evaluate {run_dir} {sweep_example('hopper')}" in lines
+    assert f"  tensorboard --logdir {run_dir}/tb" in lines
+
+
+def test_summary_of_a_sac_run_with_a_report(tmp_path):
+    run_dir = write_run(tmp_path, "run", algo="sac", seeds=(4,))
+    text = training_summary(run_dir, 3.0, report_dir=run_dir / "report")
+    assert "final ranks" not in text and " ± " not in text  # no bottleneck; one seed: no spread
+    assert f"report: {run_dir}/report/index.md" in text and "adarl report" not in text
+    assert f"--seed 4 --video {run_dir}/seed4.mp4" in text
+
+
+def test_sweep_example_spans_the_training_range():
+    assert sweep_example("hopper") == "--sweep torso_length=0.2:0.6:9"  # 0.4 + 0.2·sin(0.2·i)
+    assert sweep_example("ant") == "--sweep gravity=9.81:19.62:9"  # 14.715 + 4.905·sin(0.5·i)
+    assert sweep_example("no-such-task") == ""
+
+
+def test_summary_says_a_run_with_few_evaluations_and_a_falling_policy(tmp_path):
+    run_dir = write_run(tmp_path, "run", algo="sac", seeds=(0,), n_evals=3)
+    log = pd.read_csv(run_dir / "eval.csv")
+    log["length"] = np.where(log["step"] == log["step"].max(), 136, 1000)  # falls at the end
+    log.to_csv(run_dir / "eval.csv", index=False)
+    lines = training_summary(run_dir, 3.0).splitlines()
+    mean = log.groupby("step")["return"].mean().mean()  # all 3 evaluations: fewer than 5
+    assert lines[1].startswith(f"nominal return: {mean:.1f} (mean of the last 3 evaluation(s)")
+    assert lines[3] == (
+        "what the final policy does: episodes last 136 of 1,000 steps, forward distance not "
+        "recorded (`adarl evaluate` records it): falls (episodes end early by termination)"
+    )
+
+
+def test_behaviour_line_with_distance():
+    table = pd.DataFrame(
+        {"seed": [0, 1, 2], "length": [136.0, 1000.0, 990.0], "distance": [1.5, 0.4, 9.0],
+         "max_length": 1000}
+    )  # fmt: skip
+    assert behaviour_line(table) == (
+        "what the final policies do: episodes last 709 of 1,000 steps on average, forward "
+        "distance 3.63 m; falls (episodes end early by termination): seed 0; stands (full "
+        "length, less than 3 m forward): seed 1; moves (long episodes, at least 3 m forward): "
+        "seed 2"
+    )
+
+
+def test_final_ranks_are_those_of_the_last_logged_step(tmp_path):
+    """The summary's final ranks are each seed's ranks at its last train.csv row (read here with
+    the csv module, not with the code under test), and they differ from the first row's."""
+    import csv
+
+    run_dir = write_run(tmp_path, "run", algo="adarl", seeds=(0, 1, 2), n_evals=7)
+    with open(run_dir / "train.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    layers = [c.removeprefix("rank_") for c in rows[0] if c.startswith("rank_")]
+    last = {}
+    for row in rows:  # written in step order; keep each seed's last row
+        last[int(row["seed"])] = row
+    first = {int(r["seed"]): r for r in reversed(rows)}
+    line = next(x for x in training_summary(run_dir, 1.0).splitlines() if x.startswith("final r"))
+    for layer in layers:
+        final = [int(last[s][f"rank_{layer}"]) for s in (0, 1, 2)]
+        assert final != [int(first[s][f"rank_{layer}"]) for s in (0, 1, 2)]  # it did change
+        span = f" ({min(final)}-{max(final)})" if min(final) != max(final) else ""
+        assert f"{layer} {np.mean(final):.1f}{span}" in line, (layer, final, line)
+        table = collect.final_ranks(load_run(run_dir))
+        got = table[table["layer"] == layer].sort_values("seed")["rank"].astype(int).tolist()
+        assert got == final
