@@ -51,6 +51,7 @@ from adarl import stats  # noqa: E402
 from adarl.algos.flags import parse_int_list  # noqa: E402
 from adarl.errors import UsageError  # noqa: E402
 from adarl.files import atomic_write_bytes, atomic_write_text  # noqa: E402
+from adarl.policy import file_arrays  # noqa: E402
 from adarl.runs.layout import EVAL_CSV  # noqa: E402
 from adarl.runs.logs import read_csv  # noqa: E402
 
@@ -208,20 +209,9 @@ def sb3_policy_arrays(model) -> dict[str, np.ndarray]:
     def numpy(t):
         return t.detach().cpu().numpy().astype(np.float32)
 
-    out = {
-        "format": np.array("adarl-policy-1"),
-        "activation": np.array("relu"),
-        "n_layers": np.array(len(linears)),
-        "squash": np.array("tanh"),
-        "action_low": space.low.astype(np.float32),
-        "action_high": space.high.astype(np.float32),
-        "mean_w": numpy(actor.mu.weight).T,
-        "mean_b": numpy(actor.mu.bias),
-    }
-    for i, layer in enumerate(linears):
-        out[f"l{i}_kind"] = np.array("dense")
-        out[f"l{i}_w"], out[f"l{i}_b"] = numpy(layer.weight).T, numpy(layer.bias)
-    return out
+    layers = [("dense", numpy(layer.weight).T, numpy(layer.bias)) for layer in linears]
+    mean = (numpy(actor.mu.weight).T, numpy(actor.mu.bias))
+    return file_arrays(layers, mean, space.low, space.high, "relu")
 
 
 def train_sb3(job: dict) -> dict:

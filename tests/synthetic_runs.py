@@ -26,7 +26,7 @@ import pandas as pd
 
 from adarl.algos import registry
 from adarl.files import atomic_write_bytes
-from adarl.policy import FORMAT, to_bytes
+from adarl.policy import file_arrays, to_bytes
 from adarl.runs import checkpoints, folder
 from adarl.runs.layout import (
     EPISODES_CSV,
@@ -63,29 +63,14 @@ def policy_arrays(
     def w(*shape):
         return (rng.standard_normal(shape) / np.sqrt(shape[0])).astype(np.float32)
 
-    arrays = {
-        "format": np.array(FORMAT),
-        "activation": np.array("relu"),
-        "n_layers": np.array(2),
-        "l0_kind": np.array("dense"),
-        "l0_w": w(obs_dim, hidden),
-        "l0_b": np.zeros(hidden, np.float32),
-        "mean_w": w(hidden, act_dim),
-        "mean_b": np.zeros(act_dim, np.float32),
-        "squash": np.array("tanh"),
-        "action_low": -np.ones(act_dim, np.float32),
-        "action_high": np.ones(act_dim, np.float32),
-    }
+    dense0 = ("dense", w(obs_dim, hidden), np.zeros(hidden, np.float32))
+    mean = (w(hidden, act_dim), np.zeros(act_dim, np.float32))
     if rank is None:
-        arrays.update({"l1_kind": np.array("dense"), "l1_w": w(hidden, hidden)})
+        second = ("dense", w(hidden, hidden), np.zeros(hidden, np.float32))
     else:
-        arrays.update(
-            {"l1_kind": np.array("bottleneck"), "l1_w1": w(hidden, rank), "l1_w2": w(rank, hidden)}
-        )
-        full = obs_dim * hidden + hidden + 2 * hidden * hidden + hidden + hidden * act_dim + act_dim
-        arrays["n_params_full"] = np.array(full)
-    arrays["l1_b"] = np.zeros(hidden, np.float32)
-    return arrays
+        second = ("bottleneck", w(hidden, rank), w(rank, hidden), np.zeros(hidden, np.float32))
+    ones = np.ones(act_dim, np.float32)
+    return file_arrays([dense0, second], mean, -ones, ones, "relu", n_params_full=rank is not None)
 
 
 def _rank_path(seed: int, n_truncations: int, rule: str, rng) -> list[int]:
