@@ -4,7 +4,7 @@ Float64, four lanes (the nominal episode and three `paper` episodes), 200 env st
 tests/device/test_hopper.py. The physics cannot match: under the XML's pyramidal friction cone, C
 aligns a contact's friction directions differently from MJX (measured at one contact state: C's
 first tangent (-0.27, 0.96, 0), MJX's (0, 1, 0)), so the pyramids differ and the accelerations
-differ from the first contact. Measured on 2026-12-05 (seed 0): free-running, the observation up
+differ from the first contact. Measured on 2026-12-04 (seed 0): free-running, the observation up
 to 14.3 apart and the reward 2.8, 5 of 800 lane-steps terminating on one side only; from the same
 state each env step (host set to the device's state first), the observation 2.07 apart (a
 clipped contact force -1 on one side, +1 on the other) and the reward 0.24. The bounds below are
