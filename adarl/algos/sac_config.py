@@ -29,6 +29,14 @@ SAC_FAMILY: dict[str, dict] = {
     "sac-sparse": {"sparse_width": 1024},
 }
 
+BACKENDS = ("host", "device")
+# what the device backend (adarl.train.device_learner) trains so far: Gymnasium's own Hopper-v5
+# model (`default`; the per-episode physics tables come next), every algorithm whose networks
+# are plain or bottleneck layers
+DEVICE_TASKS = ("hopper",)
+DEVICE_DYNAMICS = ("default",)
+DEVICE_ALGOS = ("sac", "adarl", "adarl-control", "sac-fixed-rank", "sac-parseval")
+
 # AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):
 # the paper's d_t (10⁶ gradient steps, 0.7·10⁶ on Walker2d) and the `paper-table1` step budgets,
 # so that a default run truncates (Hopper 2, the others 4 times); a flat 10⁶ steps would not.
@@ -50,6 +58,10 @@ class SACConfig(RunConfig):
     # numbers never depend on the other seeds of the run; K ≥ 1: the earlier layout of K vmapped
     # groups (run folders written before keep it), where they do
     lanes: int = 0
+    # host: Gymnasium's MuJoCo C tasks, each seed its own lane; device: the MJX task, every seed
+    # vmapped into one jitted scan (a seed's numbers then depend on the seeds beside it;
+    # docs/algorithms.md, "The device backend")
+    backend: str = "host"
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics
     activation: str = "relu"  # hidden-layer activation
@@ -113,6 +125,9 @@ class SACConfig(RunConfig):
         check_choice("init", self.init, INITS)
         check_choice("rank rule", self.rank_rule, RANK_RULES)
         check_choice("lr schedule", self.lr_schedule, LR_SCHEDULES)
+        check_choice("backend", self.backend, BACKENDS)
+        if self.backend == "device":
+            self.check_device()
         if self.retain_tolerance is not None and not (
             math.isfinite(self.retain_tolerance) and self.retain_tolerance > 0
         ):
@@ -187,6 +202,13 @@ class SACConfig(RunConfig):
         if self.target_entropy is not None and not math.isfinite(self.target_entropy):
             raise UsageError(f"target-entropy must be finite, got {self.target_entropy}")
         return self
+
+    def check_device(self) -> None:
+        """What the device backend trains so far (one-line UsageError otherwise)."""
+        check_choice("task for --backend device", self.task, DEVICE_TASKS)
+        check_choice("dynamics for --backend device", self.dynamics, DEVICE_DYNAMICS)
+        check_choice("model version for --backend device", self.model_version, ("v5",))
+        check_choice("algo for --backend device", self.algo, DEVICE_ALGOS)
 
 
 PRESETS: dict[str, dict] = {

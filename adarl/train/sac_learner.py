@@ -401,7 +401,7 @@ class SACLearner:
         return Advance(end, episodes, due(c, end, truncate=end in self.truncation_steps))
 
     def parameters_finite(self) -> bool:
-        finite = self.gather(lambda lane: _finite_parameters(lane.state))
+        finite = self.gather(lambda lane: finite_parameters(lane.state))
         return all(np.all(ok) for ok in finite.values())
 
     def truncate(self, step: int) -> Truncation:
@@ -513,7 +513,7 @@ class SACLearner:
         return policies
 
     def note_divergence(self, watch, step: int) -> None:
-        for name, ok in self.gather(lambda lane: _finite_parameters(lane.state)).items():
+        for name, ok in self.gather(lambda lane: finite_parameters(lane.state)).items():
             watch.note(name, [s for s, o in zip(self.seeds, ok) if not o])
         watch.note_values("episode return", self.seeds, self.ep_return)
 
@@ -532,7 +532,7 @@ def truncation_decision(
 
 
 @jax.jit
-def _finite_parameters(state: dict) -> dict:
+def finite_parameters(state: dict) -> dict:
     """Per seed of a lane: are all actor, critic and temperature parameters, and their
     optimisers' states (Adam's moments), finite? Keyed by the divergence watch's words."""
 

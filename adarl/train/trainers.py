@@ -14,6 +14,7 @@ from adarl.algos import registry
 from adarl.algos.rnac_config import RNACConfig
 from adarl.algos.sac_config import SACConfig
 from adarl.train import loop
+from adarl.train.device_learner import DeviceSACLearner
 from adarl.train.learner import Learner
 from adarl.train.rnac_learner import RNACLearner
 from adarl.train.sac_learner import SACLearner
@@ -22,16 +23,26 @@ LEARNERS: dict[type, Callable[..., Learner]] = {
     SACConfig: SACLearner,
     RNACConfig: RNACLearner,
 }
+# `--backend device` (SACConfig.backend): every seed vmapped on the MJX task
+DEVICE_LEARNERS: dict[type, Callable[..., Learner]] = {SACConfig: DeviceSACLearner}
+
+
+def make_learner(config) -> Learner:
+    """The learner of `config`: its config class's, on the backend it names."""
+    if getattr(config, "backend", "host") == "device":
+        return DEVICE_LEARNERS[type(config)](config)
+    return LEARNERS[type(config)](config)
 
 
 def train(
     config, run_dir: str | Path, resume: bool = False, progress: bool = True, command: str = ""
 ) -> Path:
     """Train (or resume) a run of `config` into `run_dir` with its learner (`loop.train`)."""
-    return loop.train(LEARNERS[type(config)], config, run_dir, resume, progress, command)
+    return loop.train(make_learner, config, run_dir, resume, progress, command)
 
 
 def trainer(algo: str) -> Callable:
     """`train(config, run_dir, resume, progress, command)` with the learner of the registry's
     algorithm `algo`."""
-    return functools.partial(loop.train, LEARNERS[registry.get(algo).config_class])
+    registry.get(algo)  # an unknown name: a one-line error
+    return functools.partial(loop.train, make_learner)
