@@ -248,7 +248,9 @@ class DeviceSACLearner:
                 "episode_index": int(index[i, k]),
                 "dynamics": self.physics.episode_params(i, int(index[i, k])),
             }
-            episodes.append(Episode(int(i), step + int(k) + 1, info, float(ret[i, k]), int(length[i, k])))
+            episodes.append(
+                Episode(int(i), step + int(k) + 1, info, float(ret[i, k]), int(length[i, k]))
+            )
         return Advance(end, episodes, due(c, end, truncate=end in self.truncation_steps))
 
     def parameters_finite(self) -> bool:
