@@ -46,6 +46,15 @@ from adarl.cli.train import add_arguments, build_config
         (["--rank-rule", "srank"], "unknown rank rule 'srank'; allowed: cumulative, ratio, energy"),
         (["--lr-schedule", "linear"], "unknown lr schedule 'linear'; allowed: envelope, restart"),
         (["--retain-samples", "0"], "retain-samples must be > 0"),
+        (["--backend", "gpu"], "unknown backend 'gpu'; allowed: host, device"),
+        (
+            ["--backend", "device", "--task", "walker2d", "--dynamics", "default"],
+            "unknown task for --backend device 'walker2d'; allowed: hopper",
+        ),
+        (
+            ["--backend", "device"],
+            "unknown dynamics for --backend device 'paper'; allowed: default",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_creates_nothing(argv, needle, tmp_path, capsys):
