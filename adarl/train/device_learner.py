@@ -29,7 +29,7 @@ import numpy as np
 from adarl.algos import replay, sac, sac_config, sac_device, schedule
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec, layout
-from adarl.train.guards import check_training_memory
+from adarl.train.guards import check_device_memory, check_training_memory
 from adarl.train.learner import Advance, Episode, Truncation, due
 from adarl.train.sac_learner import (
     BASE_COLUMNS,
@@ -150,13 +150,15 @@ class DeviceSACLearner:
         self.spec = sac.make_spec(config, task.observation_size, task.action_size, low, high)
         self.layer_names = sac.bottleneck_names(config)
         self.truncation_steps = set(schedule.truncation_steps(config))
-        check_training_memory(
+        memory = (
             self.n,
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             self.n * sac.state_bytes(self.spec),
             f"lower --buffer-size ({config.buffer_size}) or --hidden "
             f"({','.join(map(str, config.hidden))}), or train fewer seeds per run",
         )
+        check_training_memory(*memory)
+        check_device_memory(*memory)
         for label in config.eval_dynamics:  # evaluation runs on the host tasks; checked now
             make(
                 config.task, dynamics=label, seed=0, **self.env_options | {"max_episode_steps": 1}
@@ -175,27 +177,35 @@ class DeviceSACLearner:
     # ------------------------------------------------------------------ state
     def fresh(self) -> None:
         c = self.config
-        states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
-        state = jax.tree_util.tree_map(lambda *a: np.stack(a), *states)
+        state = self.initial_state()
         state["buffer"] = replay.empty_buffers(
             self.n, c.buffer_size, self.spec.obs_dim, self.spec.act_dim
         )
         self.state = jax.device_put(state)
-        keys = np.stack([sac_device.env_key(s) for s in self.seeds])
-        self.env = self.fns.init_env(keys, self.table)
+        self.env = self.fns.init_env(self.env_keys(), self.table)
         self.rngs = [np.random.default_rng(s) for s in self.seeds]  # meta.json; unused
         self.infos = []
+
+    def initial_state(self) -> dict:
+        """Every seed's SAC state without its buffer, stacked (NumPy; the host's parameters)."""
+        states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
+        return jax.tree_util.tree_map(lambda *a: np.stack(a), *states)
+
+    def env_keys(self) -> np.ndarray:
+        return np.stack([sac_device.env_key(s) for s in self.seeds])
 
     def checkpoint_state(self) -> tuple[dict[str, np.ndarray], dict]:
         """Everything to continue exactly: the SAC state, the replay rows written so far (and
         the provisional one), the environment side (task states, observations, returns, keys)
         and the update metrics not yet in train.csv."""
-        host = jax.device_get(self.state)
-        buffer = host.pop("buffer")
-        arrays = codec.flatten_tree(host, "state")
-        used = int(min(buffer["obs"].shape[1], int(np.max(buffer["size"])) + 1))
-        for k in BUFFER_KEYS:
-            arrays[f"buffer/{k}"] = buffer[k][:, :used] if k not in ("ptr", "size") else buffer[k]
+        buffer = self.state["buffer"]
+        arrays = codec.flatten_tree(
+            jax.device_get({k: v for k, v in self.state.items() if k != "buffer"}), "state"
+        )
+        used = int(min(buffer["obs"].shape[1], int(np.max(jax.device_get(buffer["size"]))) + 1))
+        for k in BUFFER_KEYS:  # only the rows written so far leave the device
+            rows = buffer[k] if k in ("ptr", "size") else buffer[k][:, :used]
+            arrays[f"buffer/{k}"] = np.asarray(jax.device_get(rows))
         arrays.update(codec.flatten_tree(jax.device_get(self.env), "env_device"))
         for name in self.infos[0] if self.infos else ():
             arrays[f"{PENDING}/{name}"] = np.stack([np.asarray(i[name]) for i in self.infos])
@@ -207,23 +217,26 @@ class DeviceSACLearner:
                 f"this checkpoint was written by the {meta.get('backend', 'host')} backend; "
                 "--backend device resumes only device checkpoints"
             )
-        self.fresh()  # the templates of every array (and the empty buffers)
-        template = {k: v for k, v in self.state.items() if k != "buffer"}
-        state = codec.unflatten_tree(template, arrays, "state")
-        buffer = dict(self.state["buffer"])
+        c = self.config
+        state = codec.unflatten_tree(self.initial_state(), arrays, "state")
+        buffer = replay.init_buffer(c.buffer_size, self.spec.obs_dim, self.spec.act_dim)
         for k in BUFFER_KEYS:
             saved = arrays[f"buffer/{k}"]
-            if saved.shape[0] != self.n:
+            if saved.shape[0] != self.n or saved.shape[2:] != buffer[k].shape[1:]:
                 raise UsageError(
-                    f"checkpoint buffer {k!r} has shape {saved.shape}; expected {self.n} seeds"
+                    f"checkpoint buffer {k!r} has shape {saved.shape}; expected {self.n} seeds "
+                    f"and rows of shape {buffer[k].shape[1:]}"
                 )
             if k in ("ptr", "size"):
                 buffer[k] = saved
-            else:
-                buffer[k] = buffer[k].at[:, : saved.shape[1]].set(saved)
+            else:  # the rows past those written are zeros, as they were
+                full = np.zeros((self.n, *buffer[k].shape), buffer[k].dtype)
+                full[:, : saved.shape[1]] = saved
+                buffer[k] = full
         state["buffer"] = buffer
         self.state = jax.device_put(state)
-        self.env = jax.device_put(codec.unflatten_tree(self.env, arrays, "env_device"))
+        env = jax.eval_shape(self.fns.init_env, self.env_keys(), self.table)
+        self.env = jax.device_put(codec.unflatten_tree(env, arrays, "env_device"))
         names = [k.split("/", 1)[1] for k in arrays if k.startswith(f"{PENDING}/")]
         n = arrays[f"{PENDING}/{names[0]}"].shape[0] if names else 0
         self.infos = [{name: arrays[f"{PENDING}/{name}"][j] for name in names} for j in range(n)]

@@ -208,3 +208,23 @@ def test_it_learns(full_run):
         assert np.mean(late) > 2 * np.mean(random), (seed, np.mean(random), late)
     ranks = read_csv(full_run / "train.csv")[-1]
     assert int(ranks["rank_actor_1"]) < 32  # the bottlenecks were cut
+
+
+def test_a_fork_at_a_pre_truncation_checkpoint_continues_exactly_as_its_parent(full_run, tmp_path):
+    """A fork without changes at step 750 restores the checkpoint kept just before that step's
+    truncation (the path `adarl train --fork … --apply-cuts false` takes to AdaRL's control)."""
+    from adarl.train import fork
+    from adarl.train.trainers import train
+
+    planned = fork.prepare(full_run, 750, {})
+    assert planned.record["checkpoint"] == "pre_truncation"
+    child = tmp_path / "child"
+    fork.write(planned, child, "")
+    train(planned.config, child, resume=True, progress=False)
+    for name in ("episodes.csv", "train.csv", "eval.csv", "truncations.csv"):
+        assert _csv(child, name) == _csv(full_run, name), name
+    a_dir = checkpoints.latest_checkpoint(full_run)
+    b_dir = checkpoints.latest_checkpoint(child)
+    with np.load(a_dir / "arrays.npz") as a, np.load(b_dir / "arrays.npz") as b:
+        for key in a.files:
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
