@@ -45,11 +45,11 @@ PENDING = "pending"  # arrays.npz prefix of the update metrics not yet averaged 
 
 
 @dataclass(frozen=True)
-class PhysicsTable:
-    """Per-episode physics of every seed: `fields`, `mjx.Model` leaves by dotted name, arrays of
-    shape (seeds, episodes, …) (empty: the task's own model); `params`, the physical parameters
-    episodes.csv records (name -> (seeds, episodes)). Episode e of a seed uses row e mod
-    (episodes)."""
+class SeedPhysics:
+    """Per-episode physics of every seed (rows of a physics table, stacked by seed): `fields`,
+    `mjx.Model` leaves by dotted name, arrays of shape (seeds, episodes, …) (empty: the task's
+    own model); `params`, the physical parameters episodes.csv records (name -> (seeds,
+    episodes)). Episode e of a seed uses row e mod (episodes)."""
 
     fields: dict
     params: dict
@@ -58,7 +58,7 @@ class PhysicsTable:
         return {k: float(v[index, episode % v.shape[1]]) for k, v in self.params.items()}
 
 
-def default_physics(config) -> PhysicsTable:
+def default_physics(config) -> SeedPhysics:
     """`--dynamics default`: Gymnasium's own model for every episode, with the parameters the
     host task reports for it."""
     from adarl.envs import make
@@ -68,7 +68,7 @@ def default_physics(config) -> PhysicsTable:
     params = dict(env.dynamics_params)
     env.close()
     n = len(config.seeds)
-    return PhysicsTable({}, {k: np.full((n, 1), v) for k, v in params.items()})
+    return SeedPhysics({}, {k: np.full((n, 1), v) for k, v in params.items()})
 
 
 class EnvView:
@@ -130,7 +130,7 @@ def compile_functions(spec: sac.Spec) -> Compiled:
 class DeviceSACLearner:
     """A SAC-family run on the device backend: all seeds in one vmapped state."""
 
-    def __init__(self, config: sac_config.SACConfig, physics: PhysicsTable | None = None):
+    def __init__(self, config: sac_config.SACConfig, physics: SeedPhysics | None = None):
         from adarl.device import missing_reason
         from adarl.envs import make
 
