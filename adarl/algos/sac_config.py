@@ -30,11 +30,12 @@ SAC_FAMILY: dict[str, dict] = {
 }
 
 BACKENDS = ("host", "device")
-# what the device backend (adarl.train.device_learner) trains so far: Gymnasium's own Hopper-v5
-# model (`default`; the per-episode physics tables come next), every algorithm whose networks
-# are plain or bottleneck layers
+# what the device backend (adarl.train.device_learner) trains so far: Hopper-v5 on one model for
+# every episode (Gymnasium's own `default`, or a schedule's one model, `nominal` or `fixed:…`;
+# the schedules that vary per episode come next), every algorithm whose networks are plain or
+# bottleneck layers
 DEVICE_TASKS = ("hopper",)
-DEVICE_DYNAMICS = ("default",)
+DEVICE_DYNAMICS = ("default", "nominal", "fixed")
 DEVICE_ALGOS = ("sac", "adarl", "adarl-control", "sac-fixed-rank", "sac-parseval")
 
 # AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):
@@ -206,7 +207,11 @@ class SACConfig(RunConfig):
     def check_device(self) -> None:
         """What the device backend trains so far (one-line UsageError otherwise)."""
         check_choice("task for --backend device", self.task, DEVICE_TASKS)
-        check_choice("dynamics for --backend device", self.dynamics, DEVICE_DYNAMICS)
+        check_choice(
+            "dynamics for --backend device", self.dynamics.partition(":")[0], DEVICE_DYNAMICS
+        )
+        if self.dynamics != "default":  # the device's models are compiled as the host's default
+            check_choice("physics for --backend device", self.physics, ("consistent",))
         check_choice("model version for --backend device", self.model_version, ("v5",))
         check_choice("algo for --backend device", self.algo, DEVICE_ALGOS)
 

@@ -58,12 +58,13 @@ class SeedPhysics:
         return {k: float(v[index, episode % v.shape[1]]) for k, v in self.params.items()}
 
 
-def default_physics(config) -> SeedPhysics:
-    """`--dynamics default`: Gymnasium's own model for every episode, with the parameters the
+def fixed_physics(config) -> SeedPhysics:
+    """Dynamics that are one model for every episode (`default`: Gymnasium's own; `nominal`,
+    `fixed:…`: the schedule's one compiled model): no fields replaced, and the parameters the
     host task reports for it."""
     from adarl.envs import make
 
-    env = make(config.task, dynamics="default", seed=0, **config.env_options())
+    env = make(config.task, dynamics=config.dynamics, seed=0, **config.env_options())
     env.reset()
     params = dict(env.dynamics_params)
     env.close()
@@ -99,11 +100,17 @@ _COMPILED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
 
 
 @functools.cache
-def device_task(name: str):
-    """The device task `name` (one object per process, so compiled functions are shared)."""
-    from adarl.device.hopper import HopperTask
+def device_task(name: str, dynamics: str):
+    """The device task `name` on the model of `dynamics` (Gymnasium's own for `default`, else
+    the schedule's centroid, which is its one model for `nominal` and `fixed:…`); one object per
+    process, so compiled functions are shared."""
+    from adarl.device import tasks
 
-    return {"hopper": HopperTask}[name]()
+    if dynamics == "default":
+        return tasks.make(name)
+    from adarl.device.physics import physics_table
+
+    return tasks.make(name, mj_model=physics_table(name, dynamics).mj_model)
 
 
 def compile_functions(spec: sac.Spec) -> Compiled:
@@ -111,7 +118,7 @@ def compile_functions(spec: sac.Spec) -> Compiled:
     time (each compile of a device chunk takes tens of seconds on a CPU)."""
     fns = _COMPILED.get(spec)
     if fns is None:
-        task = device_task(spec.config.task)
+        task = device_task(spec.config.task, spec.config.dynamics)
         vmap = jax.vmap
 
         def chunk(n_steps, state, env, table, step, update):
@@ -143,9 +150,9 @@ class DeviceSACLearner:
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
         self.env_options = config.env_options()
-        self.physics = default_physics(config) if physics is None else physics
+        self.physics = fixed_physics(config) if physics is None else physics
         self.envs = [EnvView(self.physics.episode_params(i, 0)) for i in range(self.n)]
-        task = device_task(config.task)
+        task = device_task(config.task, config.dynamics)
         low, high = np.asarray(task.mj_model.actuator_ctrlrange, np.float32).T
         self.spec = sac.make_spec(config, task.observation_size, task.action_size, low, high)
         self.layer_names = sac.bottleneck_names(config)

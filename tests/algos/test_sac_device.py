@@ -70,11 +70,15 @@ def test_update_and_action_keys_are_separate_streams():
         ),
         (
             {"backend": "device", "dynamics": "paper"},
-            "unknown dynamics for --backend device 'paper'; allowed: default",
+            "unknown dynamics for --backend device 'paper'; allowed: default, nominal, fixed",
         ),
         (
             {"backend": "device", "dynamics": "default", "algo": "sac-sparse"},
             "unknown algo for --backend device 'sac-sparse'",
+        ),
+        (
+            {"backend": "device", "dynamics": "nominal", "physics": "ompo"},
+            "unknown physics for --backend device 'ompo'; allowed: consistent",
         ),
     ],
 )

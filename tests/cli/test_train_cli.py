@@ -53,7 +53,7 @@ from adarl.cli.train import add_arguments, build_config
         ),
         (
             ["--backend", "device"],
-            "unknown dynamics for --backend device 'paper'; allowed: default",
+            "unknown dynamics for --backend device 'paper'; allowed: default, nominal, fixed",
         ),
     ],
 )

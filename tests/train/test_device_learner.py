@@ -228,3 +228,20 @@ def test_a_fork_at_a_pre_truncation_checkpoint_continues_exactly_as_its_parent(f
     with np.load(a_dir / "arrays.npz") as a, np.load(b_dir / "arrays.npz") as b:
         for key in a.files:
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_nominal_dynamics_run_on_the_host_tasks_nominal_model():
+    """`--dynamics nominal` (one model for every episode): the device task's model is the one the
+    host task compiles for it, and episodes.csv gets the host's parameters."""
+    from adarl.envs import make
+    from adarl.train.device_learner import device_task, fixed_physics
+
+    config = registry.resolve_config("sac", "smoke", {**BUDGET, "dynamics": "nominal"})
+    env = make("hopper", dynamics="nominal", seed=0)
+    env.reset()
+    host = env.unwrapped.model
+    device = device_task("hopper", "nominal").mj_model
+    for name in ("body_mass", "body_inertia", "geom_size", "body_pos", "qpos0"):
+        np.testing.assert_array_equal(getattr(device, name), getattr(host, name), name)
+    assert fixed_physics(config).episode_params(1, 7) == env.dynamics_params
+    assert env.dynamics_params["torso_length"] == 0.4  # not Gymnasium's 0.2
