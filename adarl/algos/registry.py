@@ -133,6 +133,9 @@ ALGORITHMS: dict[str, Algorithm] = {
 ALGOS: tuple[str, ...] = tuple(ALGORITHMS)
 # the algorithm of a config.yaml without an `algo` key (none written by adarl so far)
 LEGACY_ALGO = "rnac"
+# fields added to the configs after run folders had been written without them, with the value
+# those runs had: a config.yaml that lacks one keeps that value on resume (`runs.folder`)
+ADDED_FIELDS = {"backend": "host"}
 
 
 def get(name: str) -> Algorithm:

@@ -145,7 +145,7 @@ def check_complete_config(run_dir: str | os.PathLike, recorded: dict | None = No
     so every field of its algorithm) but that its config.yaml lacks: a resume fills in no
     default (a deleted `total_steps:` line would train to the default budget). Fields a run
     written before they existed lacks are not in its checkpoint's record, and keep their
-    defaults."""
+    defaults, as do the fields of `registry.ADDED_FIELDS` in a run without a checkpoint."""
     from adarl.algos import registry
 
     values = load_config(run_dir)
@@ -154,6 +154,8 @@ def check_complete_config(run_dir: str | os.PathLike, recorded: dict | None = No
     known = recorded is not None
     path = Path(run_dir) / CONFIG_FILE
     for name, value in (recorded if known else dict.fromkeys(sorted(names))).items():
+        if not known and name in registry.ADDED_FIELDS:
+            continue  # older run folders lack it and mean its value then
         if name not in values and name in names:
             line = f"`{name}: {json.dumps(value)}`" if known else f"its {name}: line"
             raise UsageError(
