@@ -11,7 +11,8 @@ from adarl.sweeps.estimate import Measurement
 
 
 class FakeBackend:
-    """Finishes every job at once with the next outcome: an exit status or an exception."""
+    """An executor that finishes every job at once with the next outcome: an exit status or an
+    exception."""
 
     where = "a fake backend"
     slots = 1  # units handed over at once
@@ -20,7 +21,7 @@ class FakeBackend:
         self.outcomes = list(outcomes)
         self.jobs = []
 
-    def submit(self, job):
+    def submit(self, fn, job):
         self.jobs.append(job)
         future = cf.Future()
         outcome = self.outcomes.pop(0)
@@ -30,7 +31,7 @@ class FakeBackend:
             future.set_result({"returncode": outcome, "host": "h"})
         return future
 
-    def close(self, interrupted=False):
+    def close(self, cancel=False):
         pass
 
 
@@ -76,7 +77,7 @@ class WritingBackend(FakeBackend):
         super().__init__()
         self.out, self.fork_points, self.codes = out, dict(fork_points), codes or {}
 
-    def submit(self, job):
+    def submit(self, fn, job):
         args = job["worker_args"]
         run_dir = args[args.index("--run-dir") + 1]
         uid = str(run_dir).removeprefix(str(self.out.resolve()) + "/")
