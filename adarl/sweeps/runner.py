@@ -30,7 +30,6 @@ import dataclasses
 import fcntl
 import json
 import os
-import shlex
 import signal
 import time
 from collections import Counter
@@ -44,7 +43,8 @@ from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.job import run_job, thread_env
 from adarl.sweeps.spec import Sweep, Unit
-from adarl.sweeps.worker import EXIT_BUSY, unit_record
+from adarl.sweeps.worker import EXIT_BUSY
+from adarl.train import launch
 
 POLL_S = 1.0  # how often the loop looks for finished and started units
 NOT_RETRIED = {
@@ -229,9 +229,6 @@ class SweepRun:
         self.in_flight[self.executor.submit(run_job, self.job(unit, attempt))] = (unit, attempt)
 
     def job(self, unit: Unit, attempt: int) -> dict:
-        train_args = list(unit.train_args)
-        if unit.fork_of:  # the parent's run folder, where this sweep keeps it
-            train_args[train_args.index("--fork") + 1] = str(self.out / unit.fork_of)
         return {
             "worker_args": [
                 "--run-dir",
@@ -243,8 +240,7 @@ class SweepRun:
                 "--attempt",
                 str(attempt),
                 *self.options.train_extra,
-                f"--unit={json.dumps(unit_record(unit, self.out))}",
-                f"--train-flags={shlex.join(train_args)}",
+                f"--unit={json.dumps(launch.record(unit.start_in(self.out)))}",
             ],
             "log": str(self.out / "logs" / f"{unit.flat_id}.log"),
             "env": self.env,

@@ -1,7 +1,8 @@
 """Which learner the one training loop (`adarl.train.loop`) trains each algorithm with: its
 config class -> its `Learner` class, and `train`, which trains any config. Apart from
-`adarl.algos.registry` because the learners import JAX and sit a layer above the algorithms; the
-CLI and the sweep worker import this only when they train.
+`adarl.algos.registry` because the learners import JAX and sit a layer above the algorithms;
+`adarl.train.launch` (the path of `adarl train` and of the sweep worker) imports this only when it
+trains.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import pytest
 
 from adarl.sweeps import estimate, runner, spec
 from adarl.sweeps.estimate import Measurement
+from adarl.train import launch
 
 
 class FakeBackend:
@@ -166,8 +167,9 @@ def test_a_fork_unit_starts_once_its_parent_has_written_the_fork_point(tmp_path,
     (record,) = [json.loads(a.removeprefix("--unit=")) for a in args if a.startswith("--unit=")]
     parent = str((tmp_path / "out").resolve() / "hopper/a/seeds-0-1")
     assert record == {"fork": {"from": parent, "at": 950, "changes": {"apply_cuts": "false"}}}
-    (flags,) = [a.removeprefix("--train-flags=") for a in args if a.startswith("--train-flags=")]
-    assert flags == f"--fork {parent} --at 950 --apply-cuts false"
+    # the command its run records
+    argv = ("--fork", parent, "--at", "950", "--apply-cuts", "false")
+    assert launch.from_record(record).argv() == argv
     assert units["hopper/c/seeds-0-1"]["status"] == "done"
 
 

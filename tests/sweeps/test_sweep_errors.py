@@ -121,7 +121,8 @@ def test_a_run_folder_with_other_settings_is_refused(tmp_path, capsys, write_spe
 
     spec_file = write_spec(tmp_path / "s.yaml")
     unit = spec.load(str(spec_file)).units[0]
-    other = registry.resolve_config(unit.algo, unit.preset, {**unit.flags, "total_steps": "2000"})
+    start = unit.start
+    other = registry.resolve_config(unit.algo, start.preset, {**start.flags, "total_steps": "2000"})
     run_dir = tmp_path / "out" / unit.id
     run_dir.mkdir(parents=True)
     extra = {"format_version": RUN_FORMAT_VERSION, "adarl_version": __version__}
