@@ -116,8 +116,8 @@ def train(
 ) -> Path:
     """Train the run `start` describes into `out` (default `default_run_dir`; a `Resume` trains
     in its own folder), recording `command`; returns its folder. A fork is checked, then
-    written, then trains as a resumed run. Bad input is a one-line UsageError, raised before
-    anything is written (a fork: before it is written)."""
+    written, then trains as a resumed run; the tracking flags are checked before a fork's
+    folder is written. Bad input is a one-line UsageError."""
     from adarl.runs import folder
     from adarl.runs import tracking as wandb
     from adarl.train import fork
