@@ -30,12 +30,12 @@ SAC_FAMILY: dict[str, dict] = {
 }
 
 BACKENDS = ("host", "device")
-# what the device backend (adarl.train.device_learner) trains so far: Hopper-v5 on one model for
-# every episode (Gymnasium's own `default`, or a schedule's one model, `nominal` or `fixed:…`;
-# the schedules that vary per episode come next), every algorithm whose networks are plain or
-# bottleneck layers
-DEVICE_TASKS = ("hopper",)
-DEVICE_DYNAMICS = ("default", "nominal", "fixed")
+# what the device backend (adarl.train.device_learner) trains so far: Hopper-v5 and Walker2d-v5
+# under every dynamics schedule (Gymnasium's own `default`; a schedule's models, compiled as the
+# host's `consistent` physics compiles them, per episode for `paper`, `ompo`, `uniform`), every
+# algorithm whose networks are plain or bottleneck layers
+DEVICE_TASKS = ("hopper", "walker2d")
+DEVICE_DYNAMICS = ("default", "nominal", "fixed", "paper", "ompo", "uniform")
 DEVICE_ALGOS = ("sac", "adarl", "adarl-control", "sac-fixed-rank", "sac-parseval")
 
 # AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):

@@ -9,6 +9,7 @@ derived fields too: ``body_invweight0``, ``body_subtreemass``, ``geom_rbound``, 
 ``actuator_acc0``, ``stat``); a row is then read from each episode's compiled `MjModel` directly
 (no `mjx.put_model` per episode). The device task runs on the centroid's model
 (`PhysicsTable.mj_model`) with a row's fields in place of its leaves: ``task.reset(key, row)``.
+In training, `PhysicsRing` keeps each seed's next episodes' rows (the device learner's ring).
 """
 
 from __future__ import annotations
@@ -166,3 +167,62 @@ def physics_table(task: str, dynamics: str | DynamicsSchedule, seed: int = 0) ->
     leaves, _ = mjx_model(base, rules)
     shapes = {n: leaves[n].shape for n in names}
     return PhysicsTable(spec.name, schedule, int(seed), base, names, shapes, builder)
+
+
+def ring_episodes(current, slots: int) -> np.ndarray:
+    """The episode each ring slot holds when the seeds' current episodes are `current`
+    ((seeds,)): slot k holds the one episode of ``current … current + slots - 1`` that is k mod
+    `slots`, so episode e is always read from slot e mod `slots`. Returns (seeds, slots)."""
+    current = np.asarray(current, np.int64)[:, None]
+    return current + (np.arange(slots)[None] - current) % slots
+
+
+class PhysicsRing:
+    """Every seed's model fields for its next episodes, as the device learner reads them: a ring
+    of `slots` rows per seed (`fields`, name -> (seeds, slots, *shape) host arrays in `dtype`),
+    episode e of a seed in slot e mod `slots`.
+
+    `fill(current)` makes each seed's ring hold its episodes ``current … current + slots - 1``
+    (a chunk of n env steps starts at most n episodes, one per step, so ``slots = n + 1``
+    covers a chunk), compiling only the rows it lacks. Seed i's episode e has the host env's
+    parameters for schedule seed ``seeds[i]`` (`episode_params`), so both backends run the same
+    sequence; rows of schedules without random draws (`paper`, `ompo`) depend on the episode
+    index only and are compiled once per index for all seeds (kept while some seed may still
+    need them: from the lowest current episode on).
+    """
+
+    def __init__(self, table: PhysicsTable, seeds, slots: int, dtype=np.float32):
+        self.table = table
+        self.seeds = [int(s) for s in seeds]
+        self.slots = int(slots)
+        n = len(self.seeds)
+        self.fields = {
+            name: np.zeros((n, self.slots, *shape), dtype) for name, shape in table.shapes.items()
+        }
+        self.held = np.full((n, self.slots), -1, np.int64)  # episode in each slot (-1: none)
+        self._by_index: dict[int, dict] = {}
+
+    def episode_params(self, index: int, episode: int) -> dict[str, float]:
+        """Seed `index`'s episode `episode`'s parameters (the host env's for that seed)."""
+        return episode_params(self.table.schedule, self.seeds[index], episode)
+
+    def row(self, index: int, episode: int) -> dict[str, np.ndarray]:
+        """The fields of seed `index`'s episode `episode`."""
+        if self.table.schedule.needs_rng:
+            return self.table.fields_at(self.episode_params(index, episode))
+        if episode not in self._by_index:
+            self._by_index[episode] = self.table.fields_at(self.episode_params(index, episode))
+        return self._by_index[episode]
+
+    def fill(self, current) -> bool:
+        """Hold episodes ``current … current + slots - 1`` of every seed (`current`: (seeds,)
+        episode indices); returns whether any slot changed."""
+        want = ring_episodes(current, self.slots)
+        stale = np.argwhere(want != self.held)
+        for i, k in stale:
+            for name, value in self.row(int(i), int(want[i, k])).items():
+                self.fields[name][i, k] = value
+        self.held = want
+        lowest = int(np.min(current))
+        self._by_index = {e: r for e, r in self._by_index.items() if e >= lowest}
+        return len(stale) > 0

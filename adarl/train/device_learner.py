@@ -10,6 +10,12 @@ episodes.csv) and the update metrics. Ranks are masks (the bottlenecks keep thei
 seeds whose ranks differ share one shape and one compiled update; a truncation is `sac.truncate`
 vmapped over the seeds (SVD of the masked factors, the rule, optimiser and target resets).
 
+Per-episode physics (`paper`, `ompo`, `uniform`) is a ring of ``update_every + 1`` rows of model
+fields per seed on the device (`adarl.device.physics.PhysicsRing`): episode e runs with slot
+e mod (update_every + 1); before each chunk the host refills the slots of each seed's episodes
+from its current one on (at most `update_every` start in a chunk), with the host env's
+parameters for that seed. A restore rebuilds the ring from the checkpointed episode counters.
+
 Unlike the host learner, a seed's numbers depend on the batch it runs in: vmapping seeds into
 one computation changes the kernels, and so the last bits, of every seed in it (as in every
 vmapped JAX library). The same seeds on the same device give the same numbers, and a resumed
@@ -46,16 +52,21 @@ PENDING = "pending"  # arrays.npz prefix of the update metrics not yet averaged 
 
 @dataclass(frozen=True)
 class SeedPhysics:
-    """Per-episode physics of every seed (rows of a physics table, stacked by seed): `fields`,
+    """Physics that is one model for every episode, the device learner's view of it: `fields`,
     `mjx.Model` leaves by dotted name, arrays of shape (seeds, episodes, …) (empty: the task's
     own model); `params`, the physical parameters episodes.csv records (name -> (seeds,
-    episodes)). Episode e of a seed uses row e mod (episodes)."""
+    episodes)). Episode e of a seed uses row e mod (episodes). Per-episode schedules use
+    `adarl.device.physics.PhysicsRing`, which has the same three members."""
 
     fields: dict
     params: dict
 
     def episode_params(self, index: int, episode: int) -> dict:
         return {k: float(v[index, episode % v.shape[1]]) for k, v in self.params.items()}
+
+    def fill(self, current) -> bool:
+        """The rows never change (`PhysicsRing.fill` refills a ring)."""
+        return False
 
 
 def fixed_physics(config) -> SeedPhysics:
@@ -70,6 +81,19 @@ def fixed_physics(config) -> SeedPhysics:
     env.close()
     n = len(config.seeds)
     return SeedPhysics({}, {k: np.full((n, 1), v) for k, v in params.items()})
+
+
+def seed_physics(config, task):
+    """The per-episode physics of a run's seeds: `fixed_physics` for dynamics that are one model,
+    else a `PhysicsRing` of ``update_every + 1`` rows per seed (a chunk starts at most
+    `update_every` episodes besides the running one) in the task's floating type."""
+    from adarl.device.physics import PhysicsRing
+    from adarl.envs.dynamics import parse_dynamics
+
+    if not parse_dynamics(config.dynamics, config.task).varies:
+        return fixed_physics(config)
+    table = schedule_table(config.task, config.dynamics)
+    return PhysicsRing(table, config.seeds, config.update_every + 1, np.dtype(task.dtype))
 
 
 class EnvView:
@@ -100,17 +124,25 @@ _COMPILED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
 
 
 @functools.cache
+def schedule_table(name: str, dynamics: str):
+    """`adarl.device.physics.physics_table` of `name` under `dynamics`, one per process (finding
+    the changed fields compiles a few dozen models)."""
+    from adarl.device.physics import physics_table
+
+    return physics_table(name, dynamics)
+
+
+@functools.cache
 def device_task(name: str, dynamics: str):
     """The device task `name` on the model of `dynamics` (Gymnasium's own for `default`, else
-    the schedule's centroid, which is its one model for `nominal` and `fixed:…`); one object per
-    process, so compiled functions are shared."""
+    the schedule's centroid, which is its one model for `nominal` and `fixed:…` and the base
+    whose leaves per-episode rows replace for the others); one object per process, so compiled
+    functions are shared."""
     from adarl.device import tasks
 
     if dynamics == "default":
         return tasks.make(name)
-    from adarl.device.physics import physics_table
-
-    return tasks.make(name, mj_model=physics_table(name, dynamics).mj_model)
+    return tasks.make(name, mj_model=schedule_table(name, dynamics).mj_model)
 
 
 def compile_functions(spec: sac.Spec) -> Compiled:
@@ -137,7 +169,7 @@ def compile_functions(spec: sac.Spec) -> Compiled:
 class DeviceSACLearner:
     """A SAC-family run on the device backend: all seeds in one vmapped state."""
 
-    def __init__(self, config: sac_config.SACConfig, physics: SeedPhysics | None = None):
+    def __init__(self, config: sac_config.SACConfig, physics=None):
         from adarl.device import missing_reason
         from adarl.envs import make
 
@@ -150,9 +182,10 @@ class DeviceSACLearner:
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
         self.env_options = config.env_options()
-        self.physics = fixed_physics(config) if physics is None else physics
-        self.envs = [EnvView(self.physics.episode_params(i, 0)) for i in range(self.n)]
         task = device_task(config.task, config.dynamics)
+        # SeedPhysics or PhysicsRing: fields, episode_params, fill
+        self.physics = seed_physics(config, task) if physics is None else physics
+        self.envs = [EnvView(self.physics.episode_params(i, 0)) for i in range(self.n)]
         low, high = np.asarray(task.mj_model.actuator_ctrlrange, np.float32).T
         self.spec = sac.make_spec(config, task.observation_size, task.action_size, low, high)
         self.layer_names = sac.bottleneck_names(config)
@@ -160,7 +193,8 @@ class DeviceSACLearner:
         memory = (
             self.n,
             self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
-            self.n * sac.state_bytes(self.spec),
+            self.n * sac.state_bytes(self.spec)
+            + sum(v.nbytes for v in self.physics.fields.values()),
             f"lower --buffer-size ({config.buffer_size}) or --hidden "
             f"({','.join(map(str, config.hidden))}), or train fewer seeds per run",
         )
@@ -178,7 +212,8 @@ class DeviceSACLearner:
             else {}
         )
         self.fns = compile_functions(self.spec)
-        self.table = jax.device_put(self.physics.fields)
+        self.table = jax.device_put(self.physics.fields)  # refilled before each chunk
+        self.episodes = np.zeros(self.n, np.int64)  # each seed's current episode index
         self.infos: list = []  # update metrics of each chunk since the last train.csv rows
 
     # ------------------------------------------------------------------ state
@@ -189,6 +224,8 @@ class DeviceSACLearner:
             self.n, c.buffer_size, self.spec.obs_dim, self.spec.act_dim
         )
         self.state = jax.device_put(state)
+        self.episodes = np.zeros(self.n, np.int64)
+        self.load_physics()
         self.env = self.fns.init_env(self.env_keys(), self.table)
         self.rngs = [np.random.default_rng(s) for s in self.seeds]  # meta.json; unused
         self.infos = []
@@ -197,6 +234,12 @@ class DeviceSACLearner:
         """Every seed's SAC state without its buffer, stacked (NumPy; the host's parameters)."""
         states = [sac.init_state(self.spec, s, with_buffer=False) for s in self.seeds]
         return jax.tree_util.tree_map(lambda *a: np.stack(a), *states)
+
+    def load_physics(self) -> None:
+        """Put on the device the rows of each seed's episodes from its current one (`episodes`)
+        to the last a chunk can start (refilled on the host where they changed)."""
+        if self.physics.fill(self.episodes):  # copies: fill writes the host rows in place
+            self.table = jax.device_put({k: v.copy() for k, v in self.physics.fields.items()})
 
     def env_keys(self) -> np.ndarray:
         return np.stack([sac_device.env_key(s) for s in self.seeds])
@@ -244,6 +287,8 @@ class DeviceSACLearner:
         self.state = jax.device_put(state)
         env = jax.eval_shape(self.fns.init_env, self.env_keys(), self.table)
         self.env = jax.device_put(codec.unflatten_tree(env, arrays, "env_device"))
+        self.episodes = np.asarray(jax.device_get(self.env["episode"]), np.int64)
+        self.load_physics()  # the ring from the episode counters (its rows depend on them only)
         names = [k.split("/", 1)[1] for k in arrays if k.startswith(f"{PENDING}/")]
         n = arrays[f"{PENDING}/{names[0]}"].shape[0] if names else 0
         self.infos = [{name: arrays[f"{PENDING}/{name}"][j] for name in names} for j in range(n)]
@@ -256,12 +301,14 @@ class DeviceSACLearner:
         c = self.config
         end = schedule.chunk_end(c, step)
         update = schedule.chunk_updates(c, end)
+        self.load_physics()
         self.state, self.env, ended, info = self.fns.chunk(
             end - step, self.state, self.env, self.table, np.int32(step), np.bool_(update)
         )
         if update:
             self.infos.append(info)
         done, ret, length, index = jax.device_get(ended)  # (seeds, steps)
+        self.episodes = index[:, -1].astype(np.int64) + done[:, -1]  # the episode running now
         episodes = []
         for k, i in zip(*np.nonzero(done.T)):
             info = {

@@ -65,12 +65,12 @@ def test_update_and_action_keys_are_separate_streams():
     [
         ({"backend": "gpu"}, "unknown backend 'gpu'; allowed: host, device"),
         (
-            {"backend": "device", "task": "walker2d", "dynamics": "default"},
-            "unknown task for --backend device 'walker2d'; allowed: hopper",
+            {"backend": "device", "task": "ant", "dynamics": "default"},
+            "unknown task for --backend device 'ant'; allowed: hopper, walker2d",
         ),
         (
-            {"backend": "device", "dynamics": "paper"},
-            "unknown dynamics for --backend device 'paper'; allowed: default, nominal, fixed",
+            {"backend": "device", "dynamics": "uniform", "model_version": "v4"},
+            "unknown model version for --backend device 'v4'; allowed: v5",
         ),
         (
             {"backend": "device", "dynamics": "default", "algo": "sac-sparse"},
@@ -89,3 +89,12 @@ def test_device_backend_refuses_what_it_cannot_train(fields, words):
 
 def test_host_backend_is_the_default():
     assert SACConfig().validate().backend == "host"
+
+
+@pytest.mark.parametrize(
+    ("task", "dynamics"),
+    [("hopper", "paper"), ("hopper", "ompo:foot_length=0.3"), ("walker2d", "uniform")],
+)
+def test_device_backend_takes_the_per_episode_schedules(task, dynamics):
+    config = SACConfig(algo="sac", backend="device", task=task, dynamics=dynamics).validate()
+    assert (config.task, config.dynamics) == (task, dynamics)

@@ -48,12 +48,16 @@ from adarl.cli.train import add_arguments, build_config
         (["--retain-samples", "0"], "retain-samples must be > 0"),
         (["--backend", "gpu"], "unknown backend 'gpu'; allowed: host, device"),
         (
-            ["--backend", "device", "--task", "walker2d", "--dynamics", "default"],
-            "unknown task for --backend device 'walker2d'; allowed: hopper",
+            ["--backend", "device", "--task", "ant", "--dynamics", "default"],
+            "unknown task for --backend device 'ant'; allowed: hopper, walker2d",
         ),
         (
-            ["--backend", "device"],
-            "unknown dynamics for --backend device 'paper'; allowed: default, nominal, fixed",
+            ["--backend", "device", "--physics", "ompo"],
+            "unknown physics for --backend device 'ompo'; allowed: consistent",
+        ),
+        (
+            ["--backend", "device", "--dynamics", "uniform", "--model-version", "v4"],
+            "unknown model version for --backend device 'v4'; allowed: v5",
         ),
     ],
 )

@@ -1,6 +1,8 @@
 """Per-episode physics tables (`adarl.device.physics`): the host env's parameter sequence, the
 changed MJX fields found by comparing compiled models, and rows equal to a fresh compile."""
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -93,3 +95,49 @@ def test_fixed_dynamics_change_nothing_and_default_is_refused():
     assert table.mj_model.opt.gravity[2] == -12.0
     with pytest.raises(UsageError, match="bad dynamics 'default' for a physics table; allowed"):
         physics_table("hopper", "default")
+
+
+def test_ring_slot_k_holds_the_episode_that_is_k_mod_slots():
+    from adarl.device.physics import ring_episodes
+
+    # current 5 of 3 slots: episodes 5, 6, 7 in slots 2, 0, 1; current 7: 7, 8, 9 in 1, 2, 0
+    expected = [[0, 1, 2], [6, 7, 5], [9, 7, 8]]
+    np.testing.assert_array_equal(ring_episodes([0, 5, 7], 3), expected)
+
+
+def host_models(task, dynamics, seed, episodes):
+    """The host env's compiled model of each of its episodes 0 … episodes - 1, and their
+    parameters (the env reset once per episode, as training resets it)."""
+    env = make(task, dynamics, seed=seed)
+    models, params = [], []
+    for _ in range(episodes):
+        env.reset()
+        models.append(copy.copy(env.unwrapped.model))
+        params.append(env.dynamics_params)
+    env.close()
+    return models, params
+
+
+@pytest.mark.parametrize("dynamics", ["uniform", "paper"])
+def test_a_ring_holds_each_seeds_next_episodes_as_the_host_env_compiles_them(dynamics):
+    """Every slot of every seed's ring, as the current episodes move on, holds the fields of
+    the model the host env (schedule seed = the run's seed) compiles for that episode, in the
+    device's float32; `uniform` draws differ between seeds, `paper` rows do not."""
+    from adarl.device.physics import PhysicsRing, host_value, physics_table
+
+    seeds, slots = (3, 8), 4
+    table = physics_table("hopper", dynamics)
+    ring = PhysicsRing(table, seeds, slots)
+    host = [host_models("hopper", dynamics, s, 12) for s in seeds]
+    for current in ([0, 0], [2, 5], [3, 8]):
+        assert ring.fill(current)
+        assert not ring.fill(current)  # nothing stale
+        for i, (models, params) in enumerate(host):
+            for e in range(current[i], current[i] + slots):
+                assert ring.episode_params(i, e) == params[e]
+                for name, rows in ring.fields.items():
+                    value = host_value(models[e], name, table.shapes[name]).astype(np.float32)
+                    np.testing.assert_array_equal(rows[i, e % slots], value, err_msg=name)
+    ring.fill([4, 4])
+    same = np.array_equal(ring.fields["geom_size"][0], ring.fields["geom_size"][1])
+    assert same == (dynamics == "paper")  # uniform: each seed its own draws
