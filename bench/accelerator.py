@@ -7,7 +7,7 @@ Prints one CSV line per measurement (``kind,platform,batch,steps,compile_s,run_s
 and appends it to ``--csv``. Random actions in [-1, 1], one jitted `lax.scan` of ``--steps`` env
 steps (4 physics steps each), float32, no resets (the physics runs on after a fall, which costs
 the same); timed after compilation with `block_until_ready`. The model is Gymnasium's
-hopper.xml, or ``--xml`` where Gymnasium is not installed (the accelerator machine).
+hopper.xml, or ``--xml``.
 """
 
 from __future__ import annotations
@@ -20,15 +20,9 @@ HEADER = "kind,platform,batch,steps,compile_s,run_s,env_steps_per_s"
 
 
 def hopper_module():
-    """`adarl/device/hopper.py` loaded by path: `import adarl` needs Gymnasium, which the
-    accelerator machine lacks, and the task module imports nothing from adarl."""
-    import importlib.util
+    from adarl.device import hopper
 
-    path = os.path.join(os.path.dirname(__file__), "..", "adarl", "device", "hopper.py")
-    spec = importlib.util.spec_from_file_location("adarl_device_hopper", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return hopper
 
 
 def load_model(xml: str | None):

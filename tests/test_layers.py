@@ -13,7 +13,7 @@ PACKAGE = Path(adarl.__file__).parent
 # lowest first; a module may import from its own layer and the layers before it
 LAYERS = [
     # stats: the statistics of comparisons (NumPy and SciPy), imports no adarl module
-    {"__init__", "__version__", "errors", "runtime", "files", "policy", "cluster", "schedules"}
+    {"__init__", "__version__", "errors", "runtime", "files", "policy", "executor", "schedules"}
     | {"stats"},
     {"envs", "device"},  # device: the same tasks as pure JAX functions (MJX)
     {"lowrank"},  # the public rank-adaptation module: JAX and optax only, imports no adarl module

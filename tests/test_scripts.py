@@ -138,3 +138,32 @@ def test_recheck_welch_power_agrees_with_adarls(monkeypatch, n_x, n_y):
     theirs = stats.welch_minimum_detectable_difference(1000.0, 1000.0, n_x, n_y)
     assert ours == pytest.approx(theirs, rel=5e-3)
     assert recheck.power(theirs, 1000.0, n_x, n_y) == pytest.approx(0.8, abs=3e-3)
+
+
+@pytest.mark.slow
+def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
+    """bench/accelerator.sh, the prepared GPU check of issue 36, on this machine's CPU: the host
+    line, one device line (2 seeds, one timed chunk); the raw-physics part left out."""
+    import os
+
+    pytest.importorskip("mujoco.mjx")
+    env = os.environ | {
+        "WHEELS": "none",
+        "PYTHON": sys.executable,
+        "JAX_PLATFORMS": "cpu",
+        "OUT": str(tmp_path),
+        "LEARNER_SEEDS": "2",
+        "CHUNKS": "1",
+        "BUFFER": "1000",
+        "ENV_BATCHES": "",
+        "LIMIT": "600",
+    }
+    done = subprocess.run(
+        ["bash", "bench/accelerator.sh"], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    rows = (tmp_path / "accelerator-learner.csv").read_text().splitlines()
+    assert rows[0].startswith("backend,platform,seeds")
+    host, device = (row.split(",") for row in rows[1:])
+    assert host[:3] == ["host", "cpu", "1"] and device[:3] == ["device", "cpu", "2"]
+    assert float(host[6]) > 0 and float(device[6]) > 0  # seed-steps/s

@@ -29,6 +29,15 @@ SAC_FAMILY: dict[str, dict] = {
     "sac-sparse": {"sparse_width": 1024},
 }
 
+BACKENDS = ("host", "device")
+# what the device backend (adarl.train.device_learner) trains so far: Hopper-v5 and Walker2d-v5
+# under every dynamics schedule (Gymnasium's own `default`; a schedule's models, compiled as the
+# host's `consistent` physics compiles them, per episode for `paper`, `ompo`, `uniform`), every
+# algorithm whose networks are plain or bottleneck layers
+DEVICE_TASKS = ("hopper", "walker2d")
+DEVICE_DYNAMICS = ("default", "nominal", "fixed", "paper", "ompo", "uniform")
+DEVICE_ALGOS = ("sac", "adarl", "adarl-control", "sac-fixed-rank", "sac-parseval")
+
 # AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):
 # the paper's d_t (10⁶ gradient steps, 0.7·10⁶ on Walker2d) and the `paper-table1` step budgets,
 # so that a default run truncates (Hopper 2, the others 4 times); a flat 10⁶ steps would not.
@@ -46,6 +55,10 @@ class SACConfig(RunConfig):
     Defaults: the AdaRL paper's setting."""
 
     algo: str = "adarl"  # the algorithm (adarl train --algo)
+    # host: Gymnasium's MuJoCo C tasks, each seed its own lane; device: the MJX task, every seed
+    # vmapped into one jitted scan (a seed's numbers then depend on the seeds beside it;
+    # docs/algorithms.md, "The device backend")
+    backend: str = "host"
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics
     activation: str = "relu"  # hidden-layer activation
@@ -108,6 +121,9 @@ class SACConfig(RunConfig):
         check_choice("init", self.init, INITS)
         check_choice("rank rule", self.rank_rule, RANK_RULES)
         check_choice("lr schedule", self.lr_schedule, LR_SCHEDULES)
+        check_choice("backend", self.backend, BACKENDS)
+        if self.backend == "device":
+            self.check_device()
         if self.retain_tolerance is not None and not (
             math.isfinite(self.retain_tolerance) and self.retain_tolerance > 0
         ):
@@ -182,6 +198,17 @@ class SACConfig(RunConfig):
         if self.target_entropy is not None and not math.isfinite(self.target_entropy):
             raise UsageError(f"target-entropy must be finite, got {self.target_entropy}")
         return self
+
+    def check_device(self) -> None:
+        """What the device backend trains so far (one-line UsageError otherwise)."""
+        check_choice("task for --backend device", self.task, DEVICE_TASKS)
+        check_choice(
+            "dynamics for --backend device", self.dynamics.partition(":")[0], DEVICE_DYNAMICS
+        )
+        if self.dynamics != "default":  # the device's models are compiled as the host's default
+            check_choice("physics for --backend device", self.physics, ("consistent",))
+        check_choice("model version for --backend device", self.model_version, ("v5",))
+        check_choice("algo for --backend device", self.algo, DEVICE_ALGOS)
 
 
 PRESETS: dict[str, dict] = {

@@ -146,9 +146,10 @@ def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]
 
 
 def run(args: argparse.Namespace) -> int:
+    from adarl.executor import default_workers
     from adarl.files import check_writable_dir
     from adarl.sweeps import manifest, runner, spec
-    from adarl.sweeps.backends import default_workers, make_backend
+    from adarl.sweeps.job import start_executor
 
     if not args.progress_every > 0:  # NaN too; inf: never
         raise UsageError(f"--progress-every must be seconds > 0, got {args.progress_every:g}")
@@ -172,7 +173,6 @@ def run(args: argparse.Namespace) -> int:
         print(runner.plan_text(sweep, out, where))
         print(_estimate_line(sweep, out, args, None))
         return 0
-    backend = make_backend(args.backend, args.address, args.workers, sweep.cpus_per_unit)
     options = runner.Options(
         max_retries=args.max_retries,
         progress_every=float("inf") if args.no_progress else args.progress_every,
@@ -180,20 +180,15 @@ def run(args: argparse.Namespace) -> int:
         train_extra=train_extra,
         train_env=tracking_env(os.environ) if train_extra else {},
     )
-    try:
-        print(_estimate_line(sweep, out, args, backend.slots), flush=True)
-        code = runner.run_sweep(sweep, out, backend, options)
-    except BaseException:
-        backend.close(interrupted=True)
-        raise
-    backend.close()
-    return code
+    with start_executor(args.backend, args.address, args.workers, sweep.cpus_per_unit) as pool:
+        print(_estimate_line(sweep, out, args, pool.slots), flush=True)
+        return runner.run_sweep(sweep, out, pool, options)
 
 
 def _estimate_line(sweep, out: Path, args: argparse.Namespace, slots: int | None) -> str:
     """The estimated wall time, for the backend's slots (`None`: a dry run, which starts none)."""
+    from adarl.executor import default_workers
     from adarl.sweeps import estimate
-    from adarl.sweeps.backends import default_workers
 
     cores = default_workers(1)
     cluster = args.backend == "ray" and args.address

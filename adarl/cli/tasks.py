@@ -7,7 +7,7 @@ import json
 
 HELP = (
     "List the tasks, their physical parameters, dynamics schedules, intrinsic ranks, model "
-    "versions and nominal masses under each physics."
+    "versions, nominal masses under each physics and where the device (MJX) task differs."
 )
 
 
@@ -17,6 +17,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from adarl.device.tasks import DIFFERENCES
     from adarl.envs.params import PARAMS
     from adarl.envs.tasks import get_task, list_tasks
 
@@ -24,7 +25,12 @@ def run(args) -> int:
     masses = {t.name: _masses(t.name) for t in tasks}
     if args.json:
         out = [
-            _as_dict(t) | {"nominal_masses": masses[t.name], "adarl_budget": _adarl_budget(t.name)}
+            _as_dict(t)
+            | {
+                "nominal_masses": masses[t.name],
+                "adarl_budget": _adarl_budget(t.name),
+                "device": DIFFERENCES[t.name],
+            }
             for t in tasks
         ]
         print(json.dumps(out, indent=2, ensure_ascii=False))
@@ -72,6 +78,7 @@ def run(args) -> int:
         )
         _print_masses(masses[task.name], "torso_length" in task.varied)
         print(f"  {_adarl_budget(task.name)}")
+        print(f"  device task (MJX, adarl.device): {DIFFERENCES[task.name]}")
     return 0
 
 

@@ -172,81 +172,65 @@ def flags_from_args(args: argparse.Namespace) -> dict[str, str]:
     }
 
 
-def build_config(args: argparse.Namespace):
-    """(algo, config): defaults <- the algorithm <- per-task defaults <- --preset <- flags."""
+def start_from_args(args: argparse.Namespace):
+    """What `args` asks to train (`adarl.train.launch`): `--fork`, `--resume`, or a new run of
+    `--algo` with `--preset` and the config fields given as flags; a one-line UsageError for
+    flags that do not go together."""
     from adarl.algos import registry
+    from adarl.train import fork, launch
 
-    algo = registry.get(args.algo or DEFAULT_ALGO).name
-    return algo, registry.resolve_config(algo, args.preset, flags_from_args(args))
-
-
-def run(args: argparse.Namespace) -> int:
-    from adarl.runs import folder
-    from adarl.train.trainers import trainer
-
-    command = "adarl train " + shlex.join(sys.argv[2:]) if len(sys.argv) > 1 else "adarl train"
-    started = time.monotonic()
-    progress = not args.no_progress
     if args.at is not None and not args.fork:
         raise UsageError("--at is for --fork RUN_DIR")
     if args.fork:
-        run_dir = fork_run(args, command)
-        algo, config = folder.config_from_run(run_dir)
-        with _tracked(args, run_dir, config, command):
-            trainer(algo)(config, run_dir, True, progress, command)
-    elif args.resume:
+        for given, what in (
+            (args.resume, "--resume"),
+            (args.preset, "--preset"),
+            (args.algo, "--algo"),
+        ):
+            if given:
+                raise UsageError(
+                    f"--fork takes its settings from RUN_DIR; drop {what} and give only the "
+                    "fields that change (--apply-cuts false turns AdaRL into its control)"
+                )
+        if args.at is None:
+            raise UsageError(
+                f"--fork needs --at STEP (a checkpoint step, or {fork.FIRST_TRUNCATION})"
+            )
+        return launch.ForkOf(args.fork, args.at, flags_from_args(args))
+    if args.resume:
         given = list(flags_from_args(args))
         if given or args.preset or args.out:
             extra = given[0].replace("_", "-") if given else ("preset" if args.preset else "out")
             raise UsageError(f"--resume continues a run with its own settings; drop --{extra}")
-        run_dir = Path(args.resume)
-        algo, config = folder.config_from_run(run_dir)
-        with _tracked(args, run_dir, config, command):
-            trainer(algo)(config, run_dir, True, progress, command)
+        return launch.Resume(args.resume)
+    algo = registry.get(args.algo or DEFAULT_ALGO).name
+    return launch.New(algo, args.preset, flags_from_args(args))
+
+
+def build_config(args: argparse.Namespace):
+    """(algo, config) of the new run `args` asks for: defaults <- the algorithm <- per-task
+    defaults <- --preset <- flags."""
+    start = start_from_args(args)
+    return start.algo, start.config()
+
+
+def run(args: argparse.Namespace) -> int:
+    from adarl.runs import folder
+    from adarl.train import launch
+
+    command = "adarl train " + shlex.join(sys.argv[2:]) if len(sys.argv) > 1 else "adarl train"
+    started = time.monotonic()
+    start = start_from_args(args)
+    tracking = launch.Tracking(args.track, args.wandb_project, args.wandb_entity, args.wandb_group)
+    run_dir = launch.train(start, args.out, command, not args.no_progress, tracking)
+    if isinstance(start, launch.Resume):
         # a resumed run reports like the run it continues (its --preset, its --report)
         recorded = recorded_args(str(folder.load_config(run_dir).get("command", "")))
         if recorded is not None:
             args.preset = recorded.preset
             args.report = recorded.report if args.report is None else args.report
-    else:
-        algo, config = build_config(args)
-        task = getattr(config, "task", "task")
-        run_dir = (
-            Path(args.out)
-            if args.out
-            else Path("runs") / (f"{task}-{algo}-{time.strftime('%Y%m%d-%H%M%S')}")
-        )
-        with _tracked(args, run_dir, config, command):
-            trainer(algo)(config, run_dir, False, progress, command)
     finish(run_dir, time.monotonic() - started, args.report, args.preset)
     return 0
-
-
-def fork_run(args: argparse.Namespace, command: str) -> Path:
-    """Check and write the fork `--fork RUN_DIR --at STEP [--field value …]` into its folder
-    (--out, or runs/<task>-<algo>-<time>); returns the folder, ready to train as a resumed run."""
-    from adarl.train import fork
-
-    for given, what in (
-        (args.resume, "--resume"),
-        (args.preset, "--preset"),
-        (args.algo, "--algo"),
-    ):
-        if given:
-            raise UsageError(
-                f"--fork takes its settings from RUN_DIR; drop {what} and give only the fields "
-                "that change (--apply-cuts false turns AdaRL into its control)"
-            )
-    if args.at is None:
-        raise UsageError(f"--fork needs --at STEP (a checkpoint step, or {fork.FIRST_TRUNCATION})")
-    planned = fork.prepare(args.fork, args.at, flags_from_args(args))
-    run_dir = (
-        Path(args.out)
-        if args.out
-        else Path("runs") / f"{planned.config.task}-{planned.algo}-{time.strftime('%Y%m%d-%H%M%S')}"
-    )
-    fork.write(planned, run_dir, command)
-    return run_dir
 
 
 class _RaisingParser(argparse.ArgumentParser):
@@ -289,20 +273,3 @@ def finish(run_dir: Path, wall_seconds: float, report: bool | None, preset: str 
         command = shlex.join(["adarl", "report", str(run_dir), "--out", str(report_dir)])
         build_report([run_dir], report_dir, ReportOptions(command=command))
     print(training_summary(run_dir, wall_seconds, report_dir))
-
-
-def _tracked(args: argparse.Namespace, run_dir: Path, config, command: str):
-    from adarl.runs import tracking
-
-    for name in ("wandb_project", "wandb_entity", "wandb_group"):
-        if getattr(args, name) is not None and not args.track:
-            raise UsageError(f"--{name.replace('_', '-')} is for --track")
-    return tracking.tracked(
-        args.track,
-        run_dir,
-        config,
-        project=args.wandb_project,
-        entity=args.wandb_entity,
-        group=args.wandb_group,
-        command=command,
-    )

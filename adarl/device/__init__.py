@@ -1,9 +1,16 @@
 """Device tasks: Gymnasium v5 MuJoCo tasks as pure JAX reset/step functions on MJX.
 
-    from adarl.device import hopper
-    task = hopper.HopperTask()                      # Gymnasium's hopper.xml, float32
-    state = task.reset(key)                         # or task.reset(key, fields) per episode
+    from adarl.device.physics import physics_table
+    from adarl.device.tasks import make
+    table = physics_table("walker2d", "paper", seed=0)     # per-episode model fields, host-built
+    task = make("walker2d", table.mj_model)                # hopper, walker2d, ant, humanoid; float32
+    state = task.reset(key, table.row(i))                  # episode i's model fields
+    states = jax.vmap(task.reset)(keys, table.rows(range(i, i + n)))  # one episode per lane
     state, obs, reward, terminated, truncated = task.step(state, action)
+
+`common.py` runs every task (`DeviceTask`); each task module holds its Gymnasium rules (`Rules`);
+`hopper.HopperTask()` is `make("hopper")`. Where a task's physics differs from MuJoCo C's (Ant's
+friction directions, Humanoid's solver): `tasks.DIFFERENCES` and docs/envs.md.
 
 Physics is MJX's pure-JAX implementation (`mujoco.mjx`, ``impl="jax"``), chosen over MuJoCo Warp
 because the Warp stack cannot reach the accelerator machine (warp-lang's wheel is 149 MB, the

@@ -182,21 +182,11 @@ def get_task(name: str, version: str = "v5") -> TaskSpec:
 
 def env_options(config) -> dict[str, str]:
     """`make`'s `physics` and `model_version` keywords from a run's config (a config dataclass or the
-    dict of its config.yaml); a config without them (runs made before these switches) gets the
-    defaults, `consistent` and `v5`."""
+    dict of its config.yaml, whose fields are top-level keys: docs/run-format.md); a config
+    without them (runs made before these switches) gets the defaults, `consistent` and `v5`."""
     if not isinstance(config, dict):
         config = vars(config)
-
-    def find(key: str, default: str) -> str:  # flat or sectioned config.yaml, breadth first
-        queue = [config]
-        while queue:
-            node = queue.pop(0)
-            if key in node:
-                return str(node[key])
-            queue.extend(v for v in node.values() if isinstance(v, dict))
-        return default
-
     return {
-        "physics": find("physics", PHYSICS[0]),
-        "model_version": find("model_version", VERSIONS[0]),
+        "physics": str(config.get("physics", PHYSICS[0])),
+        "model_version": str(config.get("model_version", VERSIONS[0])),
     }

@@ -58,6 +58,12 @@ class Run:
         return str(config_value(self.config, "dynamics", "?"))
 
     @property
+    def backend(self) -> str:
+        """The physics backend it trained on: `host` (MuJoCo C) or `device` (MJX); runs written
+        before the field existed trained on the host."""
+        return str(config_value(self.config, "backend", "host"))
+
+    @property
     def seeds(self) -> list[int]:
         return parse_seeds(config_value(self.config, "seeds"))
 
@@ -80,15 +86,9 @@ class Run:
 
 
 def config_value(config: dict, key: str, default=None):
-    """`config[key]`, else the first `key` found in a nested section (breadth first), else
-    `default`. Trainers may write a flat or a sectioned config; readers should not care."""
-    queue = [config]
-    while queue:
-        node = queue.pop(0)
-        if key in node:
-            return node[key]
-        queue.extend(v for v in node.values() if isinstance(v, dict))
-    return default
+    """`config[key]`, else `default`. adarl writes flat configs: a value is never searched for in
+    a nested record (a fork's `changed`, say), which would read another run's setting."""
+    return config.get(key, default)
 
 
 def flatten_config(config: dict, prefix: str = "") -> dict[str, object]:

@@ -1,4 +1,4 @@
-"""Run a sweep: hand every unfinished unit to a backend, retry crashed ones a bounded number of
+"""Run a sweep: hand every unfinished unit to adarl's executor (`adarl.sweeps.job`), retry crashed ones a bounded number of
 times, keep the manifest and print one line per unit event, then a summary.
 
 The sweep folder:
@@ -14,7 +14,7 @@ Re-running the same command is how a sweep resumes: units whose run folder has D
 the others are queued again and each attempt resumes from its run's newest checkpoint
 (adarl.sweeps.worker decides that, under the unit's lock).
 
-The runner hands the backend at most one unit per slot. Each free slot takes the ready unit with
+The runner hands the executor at most one unit per slot. Each free slot takes the ready unit with
 the longest critical path (by `adarl.sweeps.estimate`: its own time left, or the time until it
 reaches a fork point plus that fork's time, when longer), so that a long unit never starts last
 and runs alone at the end, and a unit that others fork from starts before an independent unit of
@@ -30,7 +30,6 @@ import dataclasses
 import fcntl
 import json
 import os
-import shlex
 import signal
 import time
 from collections import Counter
@@ -42,9 +41,10 @@ from adarl.files import read_json
 from adarl.report.summary import duration
 from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
-from adarl.sweeps.backends import thread_env
+from adarl.sweeps.job import run_job, thread_env
 from adarl.sweeps.spec import Sweep, Unit
-from adarl.sweeps.worker import EXIT_BUSY, unit_record
+from adarl.sweeps.worker import EXIT_BUSY
+from adarl.train import launch
 
 POLL_S = 1.0  # how often the loop looks for finished and started units
 NOT_RETRIED = {
@@ -136,18 +136,18 @@ def sweep_lock(out: Path):
         yield
 
 
-def run_sweep(sweep: Sweep, out: Path, backend, options: Options) -> int:
+def run_sweep(sweep: Sweep, out: Path, executor, options: Options) -> int:
     """Run every unfinished unit of `sweep` into `out`; 0 if all are done, 1 if any failed."""
     out = Path(out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     with sweep_lock(out):
         manifest = manifest_mod.Manifest.open(out, sweep, options.command)
-        return SweepRun(sweep, out, backend, manifest, options).run()
+        return SweepRun(sweep, out, executor, manifest, options).run()
 
 
 class SweepRun:
-    def __init__(self, sweep: Sweep, out: Path, backend, manifest, options: Options):
-        self.sweep, self.out, self.backend = sweep, out, backend
+    def __init__(self, sweep: Sweep, out: Path, executor, manifest, options: Options):
+        self.sweep, self.out, self.executor = sweep, out, executor
         self.manifest, self.options = manifest, options
         self.env = {**options.train_env, **thread_env(sweep.cpus_per_unit, out / ".jax-cache")}
         self.width = max(len(u.id) for u in sweep.units)
@@ -156,14 +156,14 @@ class SweepRun:
         self.start_step: dict[str, int] = {}  # step each running attempt started from
         self.skipped = 0
         self.waiting: list[Unit] = []  # fork units whose parent has not reached the fork point
-        self.ready: list[Unit] = []  # queued units not yet handed to the backend
+        self.ready: list[Unit] = []  # queued units not yet handed to the executor
         self.order = {u.id: i for i, u in enumerate(critical_path_first(sweep, out))}
 
     # ------------------------------------------------------------------ loop
     def run(self) -> int:
         start = time.monotonic()
         echo(
-            f"sweep {self.sweep.name}: {len(self.sweep.units)} units on {self.backend.where}, "
+            f"sweep {self.sweep.name}: {len(self.sweep.units)} units on {self.executor.where}, "
             f"output {self.out}"
         )
         for unit in self.sweep.units:
@@ -205,7 +205,7 @@ class SweepRun:
                     last_progress = time.monotonic()
                 self.manifest.save()
         except BaseException as exc:  # Ctrl-C (or a bug): stop the units, record where they were
-            self.backend.close(interrupted=True)
+            self.executor.close(cancel=True)
             for unit, _ in self.in_flight.values():
                 self.manifest.update(unit.id, status="queued", error="interrupted", pid=None)
             self.manifest.save()
@@ -215,8 +215,8 @@ class SweepRun:
         return self.summary(time.monotonic() - start)
 
     def dispatch(self) -> None:
-        """Hand ready units to the backend while it has a free slot, critical path first."""
-        while self.ready and len(self.in_flight) < self.backend.slots:
+        """Hand ready units to the executor while it has a free slot, critical path first."""
+        while self.ready and len(self.in_flight) < self.executor.slots:
             unit = min(self.ready, key=lambda u: self.order[u.id])
             self.ready.remove(unit)
             self.submit(unit)
@@ -226,12 +226,9 @@ class SweepRun:
         attempt = int(record.get("attempts", 0)) + 1
         self.tries[unit.id] += 1
         self.manifest.update(unit.id, status="queued", attempts=attempt)
-        self.in_flight[self.backend.submit(self.job(unit, attempt))] = (unit, attempt)
+        self.in_flight[self.executor.submit(run_job, self.job(unit, attempt))] = (unit, attempt)
 
     def job(self, unit: Unit, attempt: int) -> dict:
-        train_args = list(unit.train_args)
-        if unit.fork_of:  # the parent's run folder, where this sweep keeps it
-            train_args[train_args.index("--fork") + 1] = str(self.out / unit.fork_of)
         return {
             "worker_args": [
                 "--run-dir",
@@ -243,8 +240,7 @@ class SweepRun:
                 "--attempt",
                 str(attempt),
                 *self.options.train_extra,
-                f"--unit={json.dumps(unit_record(unit, self.out))}",
-                f"--train-flags={shlex.join(train_args)}",
+                f"--unit={json.dumps(launch.record(unit.start_in(self.out)))}",
             ],
             "log": str(self.out / "logs" / f"{unit.flat_id}.log"),
             "env": self.env,

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from adarl.errors import UsageError, check_choice
 from adarl.files import read_yaml
+from adarl.train import launch
 
 PRESET_DIR = Path(__file__).parent / "presets"
 
@@ -48,8 +49,10 @@ MAX_UNITS = 10_000
 
 @dataclass(frozen=True)
 class Unit:
-    """One run of the sweep, trained into `<sweep>/<id>`: `config`, or for a fork, the run of
-    unit `fork_of` at step `fork_step` with the fields in `flags` changed."""
+    """One run of the sweep, trained into `<sweep>/<id>`. What it trains exists once, as
+    `start`: a new run (`launch.New`), or a fork (`launch.ForkOf`) of the unit whose id is
+    `start.parent`; its `adarl train` flags, its worker's record and the fork's parent folder are
+    derived from it."""
 
     id: str  # "<task>/<label>/seeds-<...>", also the run folder relative to the sweep folder
     task: str
@@ -57,13 +60,18 @@ class Unit:
     label: str
     seeds: tuple[int, ...]
     total_steps: int
-    preset: str | None  # the preset `config` was resolved with (None: the algorithm's default)
-    # the fields the sweep sets over the preset, as flag text (field -> text), in flag order;
-    # for a fork, the fields that change
-    flags: dict[str, str] = field(hash=False)
-    config: object = field(compare=False, repr=False)  # the SACConfig / RNACConfig it trains
-    fork_of: str | None = None  # a fork: the id of the unit it starts from (docs/sweeps.md)
-    fork_step: int = 0  # … at this step of that unit (its pre-truncation checkpoint)
+    start: launch.New | launch.ForkOf = field(hash=False)
+    config: object = field(compare=False, repr=False)  # the config it trains, to check the sweep
+
+    @property
+    def fork_of(self) -> str | None:
+        """A fork: the id of the unit it starts from (docs/sweeps.md)."""
+        return self.start.parent if isinstance(self.start, launch.ForkOf) else None
+
+    @property
+    def fork_step(self) -> int:
+        """A fork: the step of its parent it starts from (the pre-truncation checkpoint)."""
+        return int(self.start.at) if isinstance(self.start, launch.ForkOf) else 0
 
     @property
     def flat_id(self) -> str:
@@ -72,15 +80,15 @@ class Unit:
 
     @property
     def train_args(self) -> tuple[str, ...]:
-        """The `adarl train` flags (--out aside) that train the same run: what `--dry-run`
-        shows and the manifest records."""
-        if self.fork_of:
-            args = ["--fork", self.fork_of, "--at", str(self.fork_step)]
-        else:
-            args = ["--algo", self.algo] + (["--preset", self.preset] if self.preset else [])
-        for name, text in self.flags.items():
-            args += [f"--{name.replace('_', '-')}", text]
-        return tuple(args)
+        """The `adarl train` flags (--out aside) that train the same run, a fork's parent named
+        by its unit id: what `--dry-run` shows and the manifest records."""
+        return self.start.argv()
+
+    def start_in(self, out: Path) -> launch.New | launch.ForkOf:
+        """`start` for the sweep folder `out`: a fork's parent is its unit's run folder there."""
+        if isinstance(self.start, launch.ForkOf):
+            return dataclasses.replace(self.start, parent=str(out / self.start.parent))
+        return self.start
 
 
 @dataclass(frozen=True)
@@ -238,16 +246,14 @@ def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:
             )
         if not parent.config.checkpoint_before_truncation:
             raise UsageError(f"{here}: {parent_id} keeps no checkpoint before its truncations")
-        flags = {  # algo follows apply_cuts
+        changes = {  # algo follows apply_cuts
             name: _flag_text(getattr(unit.config, name)) for name in changed if name != "algo"
         }
-        out.append(dataclasses.replace(unit, flags=flags, fork_of=parent_id, fork_step=step))
+        out.append(dataclasses.replace(unit, start=launch.ForkOf(parent_id, step, changes)))
     return out
 
 
 def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
-    from adarl.algos import registry
-
     label, algo = entry["label"], entry["algo"]
     uid = f"{task}/{label}/seeds-{_seed_text(seeds)}"
     # as flag text, parsed by the field's type as `adarl train` parses its flags (a YAML 1.5e5
@@ -264,8 +270,9 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
                 f"adarl train --eval-dynamics), so none can hold a comma; got {value!r}"
             )
         flags[name] = _flag_text(value)
+    start = launch.New(algo, preset, flags)
     try:
-        config = registry.resolve_config(algo, preset, flags)
+        config = start.config()
         envs.parse_dynamics(config.dynamics, task)
         for spec in config.eval_dynamics:
             envs.parse_dynamics(spec, task)
@@ -278,8 +285,7 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
         label=label,
         seeds=tuple(seeds),
         total_steps=int(total_steps),
-        preset=preset,
-        flags=flags,
+        start=start,
         config=config,
     )
 

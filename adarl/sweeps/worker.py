@@ -1,16 +1,18 @@
 """One attempt at one sweep unit, as its own process:
 
     python -m adarl.sweeps.worker --run-dir RUN --lock LOCK --marker MARKER --attempt K \
-        [--parent PID] [--track --wandb-group G ...] --unit UNIT_JSON --train-flags TEXT
+        [--parent PID] [--track --wandb-group G ...] --unit UNIT_JSON
 
-UNIT_JSON is what the unit trains (`unit_record`): `{"algo", "config"}` (the config's fields),
-or for a fork `{"fork": {"from", "at", "changes"}}`. The worker dies with the process that
+UNIT_JSON is what the unit trains, as `adarl train` takes it (`adarl.train.launch.record`):
+`{"algo", "preset", "flags"}`, or for a fork `{"fork": {"from", "at", "changes"}}`, the parent
+being its run folder (`Unit.start_in`). The worker dies with the process that
 started it (Linux), holds the unit's lock file while it trains (so two processes can never train
 into the same run folder), then decides, under the lock, what the attempt does: nothing if the run
 is DONE, resume RUN if it has a complete checkpoint, and otherwise start it from scratch (removing
 a run folder that a kill left without any checkpoint). It writes MARKER (JSON: attempt, pid, host,
-mode, step) once it has decided, which is how the sweep learns that the unit is running. It calls
-the algorithm's trainer as `adarl train` does, with the same exit codes (2 bad input, 3 diverged).
+mode, step) once it has decided, which is how the sweep learns that the unit is running. It
+trains through `adarl.train.launch.train`, as `adarl train` does, records the `adarl train`
+command that trains the same run, and exits with the same codes (2 bad input, 3 diverged).
 """
 
 from __future__ import annotations
@@ -34,17 +36,6 @@ from adarl.runs.layout import DONE_FILE
 EXIT_BUSY = 75  # another process holds the unit's lock
 
 
-def unit_record(unit, out: Path) -> dict:
-    """What `unit` (an `adarl.sweeps.spec.Unit`) trains, as the worker's --unit takes it; a
-    fork starts from its parent's run folder in the sweep folder `out`."""
-    from adarl.runs.checkpoints import config_record
-
-    if unit.fork_of:
-        fork = {"from": str(out / unit.fork_of), "at": unit.fork_step, "changes": unit.flags}
-        return {"fork": fork}
-    return {"algo": unit.algo, "config": config_record(unit.config)}
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m adarl.sweeps.worker")
     parser.add_argument("--run-dir", required=True)
@@ -52,12 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--marker", required=True)
     parser.add_argument("--attempt", type=int, required=True)
     parser.add_argument("--parent", type=int, default=None)
-    parser.add_argument("--unit", required=True, type=json.loads, help="see unit_record")
-    parser.add_argument(
-        "--train-flags",
-        default="",
-        help="the `adarl train` flags of the same run (`Unit.train_args`), which it records",
-    )
+    parser.add_argument("--unit", required=True, type=json.loads, help="see launch.record")
     parser.add_argument("--track", action="store_true", help="as adarl train --track")
     parser.add_argument("--wandb-project", default=None)
     parser.add_argument("--wandb-entity", default=None)
@@ -107,65 +93,29 @@ def main(argv: list[str] | None = None) -> int:
     )
     if mode == "done":
         return 0
-    tracking = [
-        *(["--track"] if args.track else []),
-        *(
-            word
-            for name in ("wandb_project", "wandb_entity", "wandb_group")
-            if getattr(args, name) is not None
-            for word in (f"--{name.replace('_', '-')}", getattr(args, name))
-        ),
-    ]
-    if mode == "resume":
-        words = ["--resume", str(run_dir), "--no-progress", *tracking]
-    else:  # the `adarl train` command that trains the same run, which the run records
-        words = [*shlex.split(args.train_flags), "--out", str(run_dir), "--no-progress", *tracking]
+    from adarl.train import launch
+
+    tracking = launch.Tracking(args.track, args.wandb_project, args.wandb_entity, args.wandb_group)
+    start = launch.Resume(str(run_dir)) if mode == "resume" else launch.from_record(args.unit)
+    out = [] if mode == "resume" else ["--out", str(run_dir)]
+    # the `adarl train` command that trains the same run, which the run records
+    words = [*start.argv(), *out, "--no-progress", *tracking.argv()]
     command = "adarl train " + shlex.join(words)
     print("$ " + command, flush=True)
     from adarl.runtime import configure_xla
 
     configure_xla()
+    started = time.monotonic()
     try:
-        _train(args, run_dir, mode == "resume", command)
+        launch.train(start, run_dir, command, progress=False, tracking=tracking)
     except REPORTED as exc:
         code, message = failure("adarl train", exc)
         print(message, file=sys.stderr, flush=True)
         return code
-    return 0
-
-
-def _train(args: argparse.Namespace, run_dir: Path, resume: bool, command: str) -> None:
-    """Train (or resume, or fork then train) the unit into `run_dir`, then print the summary
-    `adarl train` prints."""
-    from adarl.algos import registry
     from adarl.report.summary import training_summary
-    from adarl.runs import folder, tracking
-    from adarl.train import fork
-    from adarl.train.trainers import trainer
 
-    started = time.monotonic()
-    unit = args.unit
-    if resume:
-        algo, config = folder.config_from_run(run_dir)
-    elif "fork" in unit:
-        planned = fork.prepare(unit["fork"]["from"], unit["fork"]["at"], unit["fork"]["changes"])
-        fork.write(planned, run_dir, command)
-        algo, config = folder.config_from_run(run_dir)
-        resume = True  # a written fork trains as a resumed run
-    else:
-        record = {**unit["config"], "algo": unit["algo"]}
-        algo, config = registry.config_from_record(record, "the sweep unit's config")
-    with tracking.tracked(
-        args.track,
-        run_dir,
-        config,
-        project=args.wandb_project,
-        entity=args.wandb_entity,
-        group=args.wandb_group,
-        command=command,
-    ):
-        trainer(algo)(config, run_dir, resume, False, command)
     print(training_summary(run_dir, time.monotonic() - started), flush=True)
+    return 0
 
 
 def _die_with_parent(parent: int) -> bool:

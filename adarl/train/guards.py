@@ -61,6 +61,30 @@ def nonfinite_seeds(seeds, values) -> list[int]:
     return [int(s) for s, ok in zip(seeds, np.isfinite(values).all(axis=1)) if not ok]
 
 
+def accelerator_memory() -> int | None:
+    """The memory of JAX's default device in bytes where it is an accelerator; None on a CPU
+    (the machine's memory is what counts there) or where the device does not say."""
+    import jax
+
+    device = jax.devices()[0]
+    if device.platform == "cpu":
+        return None
+    return (device.memory_stats() or {}).get("bytes_limit")
+
+
+def check_device_memory(n_seeds: int, buffers: int, networks: int, lower: str) -> None:
+    """The device backend's memory check, before anything is allocated: its replay buffers and
+    networks (bytes over all seeds) live in the accelerator's memory, which must hold them. A
+    floor: the chunk's activations and XLA's workspace are left out."""
+    total = accelerator_memory()
+    if total is not None and buffers + networks > total:
+        raise UsageError(
+            f"{n_seeds} seed{'s' * (n_seeds > 1)} (buffers {gib(buffers)}, networks "
+            f"{gib(networks)}) need {gib(buffers + networks)} but the accelerator has "
+            f"{gib(total)} of memory; {lower}"
+        )
+
+
 class DivergenceWatch:
     """Non-finite losses, parameters and returns, per seed, checked at each logging point.
 

@@ -367,7 +367,7 @@ class SACLearner:
         return Advance(end, episodes, due(c, end, truncate=end in self.truncation_steps))
 
     def parameters_finite(self) -> bool:
-        finite = self.gather(lambda lane: _finite_parameters(lane.state))
+        finite = self.gather(lambda lane: finite_parameters(lane.state))
         return all(np.all(ok) for ok in finite.values())
 
     def truncate(self, step: int) -> Truncation:
@@ -474,7 +474,7 @@ class SACLearner:
         if self.metric_means is not None:
             for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
                 found[key] = nonfinite_seeds(self.seeds, self.metric_means[key])
-        for name, ok in self.gather(lambda lane: _finite_parameters(lane.state)).items():
+        for name, ok in self.gather(lambda lane: finite_parameters(lane.state)).items():
             found[name] = [s for s, o in zip(self.seeds, ok) if not o]
         found["episode return"] = nonfinite_seeds(self.seeds, self.ep_return)
         return {quantity: seeds for quantity, seeds in found.items() if seeds}
@@ -494,7 +494,7 @@ def truncation_decision(
 
 
 @jax.jit
-def _finite_parameters(state: dict) -> dict:
+def finite_parameters(state: dict) -> dict:
     """Per seed of a lane: are all actor, critic and temperature parameters, and their
     optimisers' states (Adam's moments), finite? Keyed by the divergence watch's words."""
 

@@ -89,9 +89,11 @@ def test_tasks_shows_versions_and_nominal_masses(capsys):
     assert "model versions: v5 Hopper-v5 obs 11 (default), v4 Hopper-v4 obs 11" in out
     assert "masses at the nominal point (kg), physics consistent / ompo:" in out
     assert "torso 6.807 / 3.665" in out and "foot 9.726 / 5.316" in out
+    assert "device task (MJX, adarl.device): same physics as MuJoCo C" in out
     assert main(["tasks", "ant", "--json"]) == 0
     (ant,) = json.loads(capsys.readouterr().out)
     assert ant["nominal_masses"]["consistent"] == ant["nominal_masses"]["ompo"]
+    assert ant["device"].startswith("differs from MuJoCo C from the first contact")
     assert main(["tasks", "ant"]) == 0
     assert "v4 Ant-v4 obs 27" in capsys.readouterr().out
 

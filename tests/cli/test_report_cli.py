@@ -236,6 +236,10 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, sweep, capsys):
     ompo = write_run(tmp_path / "runs2", "ompo", dynamics="ompo", algo="sac")
     _fails(["report", str(sweep / "hopper" / "adarl"), str(ompo), "--out", str(out)], capsys,
            "would share the table row 'hopper'")  # fmt: skip
+    # one report, one physics backend: a device run (MJX) beside host runs, even on another task
+    device = write_run(tmp_path / "runs3", "dev", task="walker2d", extra_config={"backend": "device"})  # fmt: skip
+    _fails(["report", str(sweep / "hopper" / "adarl"), str(device), "--out", str(out)], capsys,
+           "ran on different physics (MuJoCo C and MJX)")  # fmt: skip
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "notes.txt").write_text("mine")
     _fails(["report", str(sweep), "--out", str(tmp_path / "busy")], capsys, "not an adarl report")

@@ -45,6 +45,19 @@ from adarl.cli.train import add_arguments, build_config
         (["--rank-rule", "srank"], "unknown rank rule 'srank'; allowed: cumulative, ratio, energy"),
         (["--lr-schedule", "linear"], "unknown lr schedule 'linear'; allowed: envelope, restart"),
         (["--retain-samples", "0"], "retain-samples must be > 0"),
+        (["--backend", "gpu"], "unknown backend 'gpu'; allowed: host, device"),
+        (
+            ["--backend", "device", "--task", "ant", "--dynamics", "default"],
+            "unknown task for --backend device 'ant'; allowed: hopper, walker2d",
+        ),
+        (
+            ["--backend", "device", "--physics", "ompo"],
+            "unknown physics for --backend device 'ompo'; allowed: consistent",
+        ),
+        (
+            ["--backend", "device", "--dynamics", "uniform", "--model-version", "v4"],
+            "unknown model version for --backend device 'v4'; allowed: v5",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_creates_nothing(argv, needle, tmp_path, capsys):

@@ -392,8 +392,11 @@ def test_make_vec_passes_physics_and_version():
 
 def test_env_options_from_configs():
     assert env_options({"task": "hopper"}) == {"physics": "consistent", "model_version": "v5"}
-    nested = {"run": {"physics": "ompo"}, "env": {"model_version": "v4"}}
-    assert env_options(nested) == {"physics": "ompo", "model_version": "v4"}
+    flat = {"task": "hopper", "physics": "ompo", "model_version": "v4"}
+    assert env_options(flat) == {"physics": "ompo", "model_version": "v4"}
+    # a fork's record is no section of fields: nothing is looked up inside it
+    forked = {"task": "hopper", "fork": {"changed": {"physics": {"from": "a", "to": "b"}}}}
+    assert env_options(forked) == {"physics": "consistent", "model_version": "v5"}
 
 
 # ------------------------------------------------------------------ bad input

@@ -39,9 +39,11 @@ def test_not_a_run(tmp_path):
         runs.load_run(bad)  # checked as a resume checks it
 
 
-def test_nested_config_sections_and_seed_forms():
-    config = {"algo": "adarl", "env": {"task": "hopper", "seeds": "0-2,5"}}
-    assert runs.config_value(config, "task") == "hopper"
+def test_config_values_are_top_level_and_seed_forms():
+    # a nested record (a fork's `changed`) is another run's setting, never this run's
+    config = {"algo": "adarl", "seeds": "0-2,5", "fork": {"changed": {"task": "walker2d"}}}
+    assert runs.config_value(config, "task") is None
+    assert runs.config_value(config, "task", "hopper") == "hopper"
     assert runs.parse_seeds(runs.config_value(config, "seeds")) == [0, 1, 2, 5]
     assert runs.parse_seeds(3) == [3] and runs.parse_seeds([1, 2]) == [1, 2]
     with pytest.raises(UsageError):

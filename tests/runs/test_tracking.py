@@ -14,8 +14,10 @@ import pytest
 
 from adarl.cli.main import main
 from adarl.cli.train import add_arguments, build_config
+from adarl.evaluation import summary
 from adarl.runs import tracking
 from adarl.sweeps import spec, worker
+from adarl.train import launch
 
 TINY = ["--algo", "adarl", "--preset", "smoke", "--seeds", "0", "--total-steps", "1000"]
 
@@ -163,14 +165,16 @@ def test_a_sweep_unit_passes_the_tracking_flags_to_every_attempt(tmp_path, monke
         for name in ("meta.json", "arrays.npz"):
             (run_dir / "checkpoints" / "step_000000000500" / name).write_text("{}")
     seen = []
-    monkeypatch.setattr(worker, "_train", lambda *args: seen.append(args))
+    monkeypatch.setattr(launch, "train", lambda *args, **kwargs: seen.append((args, kwargs)))
+    monkeypatch.setattr(summary, "training_summary", lambda *args: "")
     state = ["--lock", str(tmp_path / "l"), "--marker", str(tmp_path / "m"), "--attempt", "1"]
     unit = spec.load("smoke").units[0]
-    what = [f"--unit={json.dumps(worker.unit_record(unit, tmp_path))}", "--train-flags=--algo sac"]
+    what = [f"--unit={json.dumps(launch.record(unit.start_in(tmp_path)))}"]
     extra = ["--track", "--wandb-group", "smoke"]
     assert worker.main(["--run-dir", str(run_dir), *state, *extra, *what]) == 0
-    args, _, resumed, command = seen[0]
-    assert args.track and args.wandb_group == "smoke" and resumed == resume
+    (start, _, command), kwargs = seen[0]
+    assert kwargs["tracking"] == launch.Tracking(True, group="smoke")
+    assert isinstance(start, launch.Resume) == resume
     assert command.endswith("--no-progress --track --wandb-group smoke")
     assert ("--resume" in command) == resume
 

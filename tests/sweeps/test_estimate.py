@@ -10,10 +10,11 @@ from adarl.cli.main import main
 from adarl.sweeps import estimate, spec
 from adarl.sweeps.estimate import Measurement
 from adarl.sweeps.spec import Sweep, Unit
+from adarl.train.launch import ForkOf, New
 
 
 def _unit(uid="hopper/adarl/seeds-0-2", algo="adarl", task="hopper", label="adarl", seeds=3):
-    return Unit(uid, task, algo, label, tuple(range(seeds)), 120_000, None, {}, None)
+    return Unit(uid, task, algo, label, tuple(range(seeds)), 120_000, New(algo), None)
 
 
 def _measured(rate, algo="adarl", task="hopper", label="adarl", source="shipped"):
@@ -225,8 +226,8 @@ def test_a_fork_starts_when_its_parent_reaches_the_fork_point():
 
 def test_a_fork_unit_costs_the_steps_after_its_fork_point():
     parent = _unit("hopper/adarl/seeds-0-2")
-    child = Unit("hopper/c/seeds-0-2", "hopper", "adarl-control", "c", (0, 1, 2), 120_000, None,
-                 {}, None, fork_of=parent.id, fork_step=90_000)  # fmt: skip
+    child = Unit("hopper/c/seeds-0-2", "hopper", "adarl-control", "c", (0, 1, 2), 120_000,
+                 ForkOf(parent.id, 90_000), None)  # fmt: skip
     sweep = Sweep("s", "s.yaml", (parent, child))
     found = estimate.estimate(sweep, {}, 2, [_measured(300)], cores=2)
     by_id = {u.unit_id: u for u in found.units}

@@ -8,10 +8,12 @@ import pytest
 
 from adarl.sweeps import estimate, runner, spec
 from adarl.sweeps.estimate import Measurement
+from adarl.train import launch
 
 
 class FakeBackend:
-    """Finishes every job at once with the next outcome: an exit status or an exception."""
+    """An executor that finishes every job at once with the next outcome: an exit status or an
+    exception."""
 
     where = "a fake backend"
     slots = 1  # units handed over at once
@@ -20,7 +22,7 @@ class FakeBackend:
         self.outcomes = list(outcomes)
         self.jobs = []
 
-    def submit(self, job):
+    def submit(self, fn, job):
         self.jobs.append(job)
         future = cf.Future()
         outcome = self.outcomes.pop(0)
@@ -30,7 +32,7 @@ class FakeBackend:
             future.set_result({"returncode": outcome, "host": "h"})
         return future
 
-    def close(self, interrupted=False):
+    def close(self, cancel=False):
         pass
 
 
@@ -76,7 +78,7 @@ class WritingBackend(FakeBackend):
         super().__init__()
         self.out, self.fork_points, self.codes = out, dict(fork_points), codes or {}
 
-    def submit(self, job):
+    def submit(self, fn, job):
         args = job["worker_args"]
         run_dir = args[args.index("--run-dir") + 1]
         uid = str(run_dir).removeprefix(str(self.out.resolve()) + "/")
@@ -165,8 +167,9 @@ def test_a_fork_unit_starts_once_its_parent_has_written_the_fork_point(tmp_path,
     (record,) = [json.loads(a.removeprefix("--unit=")) for a in args if a.startswith("--unit=")]
     parent = str((tmp_path / "out").resolve() / "hopper/a/seeds-0-1")
     assert record == {"fork": {"from": parent, "at": 950, "changes": {"apply_cuts": "false"}}}
-    (flags,) = [a.removeprefix("--train-flags=") for a in args if a.startswith("--train-flags=")]
-    assert flags == f"--fork {parent} --at 950 --apply-cuts false"
+    # the command its run records
+    argv = ("--fork", parent, "--at", "950", "--apply-cuts", "false")
+    assert launch.from_record(record).argv() == argv
     assert units["hopper/c/seeds-0-1"]["status"] == "done"
 
 

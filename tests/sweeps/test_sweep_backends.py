@@ -7,7 +7,7 @@ import pytest
 
 from adarl.cli.main import main
 from adarl.results.runs import find_runs
-from adarl.sweeps import backends
+from adarl.sweeps import job
 
 UNITS = ("hopper/adarl/seeds-0-1", "hopper/sac/seeds-0-1")
 
@@ -59,7 +59,7 @@ def test_smoke_preset_on_a_local_ray_instance(tmp_path, capsys, assert_complete,
     _check_smoke_output(out, assert_complete)
 
 
-@pytest.mark.skipif(backends.autogroup_nice("self") is None, reason="no Linux autogroups here")
+@pytest.mark.skipif(job.autogroup_nice("self") is None, reason="no Linux autogroups here")
 def test_a_unit_in_its_own_session_can_take_the_sweeps_cpu_share():
     """Units start in a new session, which the kernel schedules as a new group at nice 0; the
     sweep hands its own group's nice to the unit (read back from /proc)."""
@@ -69,9 +69,9 @@ def test_a_unit_in_its_own_session_can_take_the_sweeps_cpu_share():
     proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"],
                             start_new_session=True)  # fmt: skip
     try:
-        assert backends.autogroup_nice(proc.pid) == 0
-        backends.set_autogroup_nice(proc.pid, 7)
-        assert backends.autogroup_nice(proc.pid) == 7
+        assert job.autogroup_nice(proc.pid) == 0
+        job.set_autogroup_nice(proc.pid, 7)
+        assert job.autogroup_nice(proc.pid) == 7
     finally:
         proc.kill()
         proc.wait()

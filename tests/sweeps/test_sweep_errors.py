@@ -72,9 +72,9 @@ def test_a_ray_address_that_does_not_answer(tmp_path, capsys, monkeypatch):
     """A port that accepts connections and never replies (a firewall, a hung head node, another
     service): a one-line error after the connect timeout, not Ray's minutes of retrying."""
     pytest.importorskip("ray")
-    from adarl import cluster
+    from adarl import executor
 
-    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 0.5)
+    monkeypatch.setattr(executor, "CONNECT_TIMEOUT_S", 0.5)
     with socket.create_server(("127.0.0.1", 0)) as silent:  # listens, never accepts or answers
         address = f"127.0.0.1:{silent.getsockname()[1]}"
         started = time.monotonic()
@@ -121,7 +121,8 @@ def test_a_run_folder_with_other_settings_is_refused(tmp_path, capsys, write_spe
 
     spec_file = write_spec(tmp_path / "s.yaml")
     unit = spec.load(str(spec_file)).units[0]
-    other = registry.resolve_config(unit.algo, unit.preset, {**unit.flags, "total_steps": "2000"})
+    start = unit.start
+    other = registry.resolve_config(unit.algo, start.preset, {**start.flags, "total_steps": "2000"})
     run_dir = tmp_path / "out" / unit.id
     run_dir.mkdir(parents=True)
     extra = {"format_version": RUN_FORMAT_VERSION, "adarl_version": __version__}

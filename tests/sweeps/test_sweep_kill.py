@@ -99,7 +99,7 @@ def test_a_unit_held_by_another_process_is_not_trained_twice(tmp_path):
                 str(tmp_path / "m.json"),
                 "--attempt",
                 "1",
-                '--unit={"algo": "sac", "config": {}}',
+                '--unit={"algo": "sac", "preset": null, "flags": {}}',
             ]
         )
     assert code == worker.EXIT_BUSY

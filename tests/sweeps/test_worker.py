@@ -1,4 +1,4 @@
-"""The sweep worker: the config a unit hands over is the config it was resolved to, and a unit
+"""The sweep worker: what a unit hands over resolves to the config the sweep checked, and a unit
 trains exactly what `adarl train` with the same settings trains."""
 
 import csv
@@ -10,6 +10,7 @@ import pytest
 from adarl.algos import registry
 from adarl.cli.main import main
 from adarl.sweeps import spec, worker
+from adarl.train import launch
 
 TIMING_COLUMNS = {"steps_per_s", "wall_s", "time", "seconds"}
 
@@ -19,9 +20,11 @@ def test_the_handed_over_config_is_the_units_config(algo, tmp_path):
     rank = {"rank": 16} if algo == "sac-fixed-rank" else {}
     doc = {"tasks": ["walker2d"], "algos": [{"algo": algo, **rank}], "seeds": "0-2"}
     unit = spec.parse({**doc, "budget": "1.5e5", "preset": "smoke"}).units[0]
-    record = json.loads(json.dumps(worker.unit_record(unit, tmp_path)))  # as the worker reads it
-    config = {**record["config"], "algo": record["algo"]}
-    assert registry.config_from_record(config, "unit") == (unit.algo, unit.config)
+    record = json.loads(
+        json.dumps(launch.record(unit.start_in(tmp_path)))
+    )  # as the worker reads it
+    start = launch.from_record(record)
+    assert (start.algo, start.config()) == (unit.algo, unit.config)
 
 
 def _rows(path):
@@ -38,7 +41,7 @@ def _files(run_dir):
 def test_a_sweep_unit_and_adarl_train_give_the_same_bits(tmp_path, write_spec):
     unit = spec.load(str(write_spec(tmp_path / "s.yaml", algos=["adarl"]))).units[0]
     state = ["--lock", str(tmp_path / "l"), "--marker", str(tmp_path / "m"), "--attempt", "1"]
-    record = f"--unit={json.dumps(worker.unit_record(unit, tmp_path))}"
+    record = f"--unit={json.dumps(launch.record(unit.start_in(tmp_path)))}"
     by_sweep, by_train = tmp_path / "sweep", tmp_path / "train"
     assert worker.main(["--run-dir", str(by_sweep), *state, record]) == 0
     argv = ["train", *unit.train_args, "--out", str(by_train), "--no-progress", "--no-report"]

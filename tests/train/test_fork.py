@@ -15,7 +15,7 @@ from adarl.errors import UsageError
 from adarl.runs import checkpoints
 from adarl.runs.layout import PRE_TRUNCATION, PRE_TRUNCATION_DIR
 from adarl.runs.logs import read_csv
-from adarl.train import fork, sac_learner, trainers
+from adarl.train import fork, launch, sac_learner, trainers
 
 CSVS = ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")
 
@@ -251,6 +251,14 @@ def test_a_fork_refuses_a_folder_in_use(parent, tmp_path):
     (tmp_path / "taken" / "x").write_text("x")
     with pytest.raises(UsageError, match="already exists and is not empty"):
         fork.write(fork.prepare(parent, 550, {}), tmp_path / "taken", "")
+
+
+def test_a_fork_with_a_bad_tracking_flag_writes_nothing(parent, tmp_path):
+    """`launch.train` checks everything before it writes the fork's folder."""
+    start = launch.ForkOf(str(parent), 550, {"apply_cuts": "false"})
+    with pytest.raises(UsageError, match="--wandb-project is for --track"):
+        launch.train(start, tmp_path / "child", "", False, launch.Tracking(project="p"))
+    assert not (tmp_path / "child").exists()
 
 
 def test_a_fork_interrupted_while_being_made_is_refused(parent, tmp_path, monkeypatch):

@@ -76,3 +76,19 @@ def test_the_memory_check_says_what_to_lower(monkeypatch):
     )
     monkeypatch.setattr(guards, "machine_memory", lambda: None)  # not knowable: no guess
     guards.check_memory(10**30, "the thing", "lower --size")
+
+
+def test_the_device_memory_check_counts_the_accelerator(monkeypatch):
+    from adarl.errors import UsageError
+    from adarl.train import guards
+
+    assert guards.accelerator_memory() is None  # the tests run on a CPU
+    guards.check_device_memory(3, 10**30, 0, "lower --size")  # a CPU: the machine's check
+    monkeypatch.setattr(guards, "accelerator_memory", lambda: 2**30)
+    guards.check_device_memory(3, 2**29, 2**29, "lower --size")  # exactly the memory: fits
+    with pytest.raises(UsageError) as err:
+        guards.check_device_memory(256, 2**30, 2**28, "lower --size")
+    assert str(err.value) == (
+        "256 seeds (buffers 1.0 GiB, networks 0.2 GiB) need 1.2 GiB but the accelerator has "
+        "1.0 GiB of memory; lower --size"
+    )

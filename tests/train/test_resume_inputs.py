@@ -18,6 +18,7 @@ from cli_errors import one_line_exit_2
 from adarl.algos import sac_config
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.cli.main import main
+from adarl.errors import UsageError
 from adarl.runs import checkpoints, logs
 from adarl.runs.layout import LOCK_FILE
 from adarl.runs.logs import read_csv
@@ -233,3 +234,22 @@ def test_a_log_header_that_is_not_utf8_is_one_line_on_resume(sac_run, tmp_path, 
         capsys,
         "train.csv has a header that is not UTF-8 text",
     )
+
+
+def test_a_run_without_checkpoint_written_before_a_field_existed_resumes(sac_run, tmp_path):
+    """`backend` came after the campaign's runs (8bee27f): their config.yaml has no such line, and
+    a unit killed before its first checkpoint must still resume; any other missing field is
+    still refused."""
+    from adarl.runs.folder import check_complete_config
+
+    run_dir = unfinished(sac_run, tmp_path / "run")
+    for found in checkpoints.checkpoint_dirs(run_dir):
+        shutil.rmtree(found)
+    doc = yaml.safe_load((run_dir / "config.yaml").read_text())
+    assert doc.pop("backend") == "host"
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    check_complete_config(run_dir)  # no error
+    doc.pop("total_steps")
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    with pytest.raises(UsageError, match="has no field 'total_steps'"):
+        check_complete_config(run_dir)

@@ -1,18 +1,13 @@
-"""Where units run. Both backends run the same job, `run_job`: one `adarl.sweeps.worker`
-subprocess with its output appended to the unit's log, and both hand back a
-`concurrent.futures.Future` per job, so the sweep's loop (adarl.sweeps.runner) does not care which
-one it talks to.
-
-* `LocalBackend`: a pool of `workers` slots on this machine. The slots are threads, each waiting
-  on its unit's training subprocess: the subprocesses are the workers that use the cores.
-* `RayBackend`: each job is a Ray task declaring `cpus_per_unit` CPUs, on a local Ray instance
-  it starts (sized to `workers`) or on the cluster at `address`. Run folders are written by the
-  node that trains them, so on a cluster the sweep folder must be on a shared filesystem.
+"""One attempt at one sweep unit, as the sweep hands it to adarl's executor (`adarl.executor`):
+`run_job` starts one `adarl.sweeps.worker` subprocess with its output appended to the unit's log
+and waits for it. Locally the executor's workers are threads, each waiting on its unit's
+subprocess (the subprocesses use the cores; `stop_children` ends them on Ctrl-C); on Ray each
+job is a task declaring `cpus_per_unit` CPUs. Run folders are written by the node that trains
+them, so on a cluster the sweep folder must be on a shared filesystem.
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import os
 import signal
 import socket
@@ -21,12 +16,9 @@ import sys
 import threading
 from pathlib import Path
 
-from adarl.cluster import connect_ray
-from adarl.errors import UsageError
-from adarl.runtime import available_cores, with_xla_flags
+from adarl.runtime import with_xla_flags
 
 
-# ----------------------------------------------------------------------------- the job
 def thread_env(cpus: int, cache_dir: Path | None = None) -> dict[str, str]:
     """Environment for a unit's process: XLA (one thread per computation, `cpus` CPU devices),
     OpenMP and BLAS limited to `cpus` threads so that concurrent units do not fight over cores; JAX's compilation cache in `cache_dir` (unless the
@@ -123,66 +115,18 @@ def _signal(proc: subprocess.Popen, sig: int) -> None:
         pass
 
 
-# ----------------------------------------------------------------------------- backends
-def default_workers(cpus_per_unit: int = 1) -> int:
-    """Units at once on this machine: its available cores over `cpus_per_unit`."""
-    return max(1, available_cores() // cpus_per_unit)
+def start_executor(backend: str, address: str | None, workers: int | None, cpus_per_unit: int):
+    """adarl's executor (`adarl.executor.start`) for a sweep's jobs: locally one thread per
+    unit at once (the unit's subprocess does the work, and Ctrl-C stops it), on Ray one task of
+    `cpus_per_unit` CPUs per job, never retried by Ray (the sweep retries its units itself)."""
+    from adarl import executor
 
-
-class LocalBackend:
-    name = "local"
-
-    def __init__(self, workers: int):
-        self.workers = workers
-        self.slots = workers  # units at once
-        self.where = f"{workers} local worker{'s' * (workers != 1)}"
-        self._pool = cf.ThreadPoolExecutor(max_workers=workers, thread_name_prefix="unit")
-
-    def submit(self, job: dict) -> cf.Future:
-        return self._pool.submit(run_job, job)
-
-    def close(self, interrupted: bool = False) -> None:
-        if interrupted:
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            stop_children()
-        self._pool.shutdown(wait=True, cancel_futures=True)
-
-
-class RayBackend:
-    name = "ray"
-
-    def __init__(self, address: str | None, workers: int, cpus_per_unit: int):
-        ray = connect_ray(address, workers * cpus_per_unit)
-        self._ray = ray
-        self._remote = ray.remote(num_cpus=cpus_per_unit, max_retries=0)(run_job)
-        self._refs: dict[cf.Future, object] = {}
-        cpus = int(ray.cluster_resources().get("CPU", 0))
-        self.slots = max(1, cpus // cpus_per_unit)  # units at once
-        self.where = (
-            f"Ray cluster at {address} ({cpus} CPUs)"
-            if address
-            else f"local Ray instance ({cpus} CPUs)"
-        )
-
-    def submit(self, job: dict) -> cf.Future:
-        ref = self._remote.remote(job)
-        future = ref.future()
-        self._refs[future] = ref
-        return future
-
-    def close(self, interrupted: bool = False) -> None:
-        if interrupted:
-            for future, ref in self._refs.items():
-                if not future.done():
-                    self._ray.cancel(ref, force=True)
-        self._refs.clear()
-        self._ray.shutdown()  # stops the local instance it started; only disconnects otherwise
-
-
-def make_backend(kind: str, address: str | None, workers: int | None, cpus_per_unit: int):
-    """A started backend; a one-line UsageError (nothing started) if it cannot start."""
-    if kind == "local":
-        if address:
-            raise UsageError("--address is for --backend ray")
-        return LocalBackend(workers or default_workers(cpus_per_unit))
-    return RayBackend(address, workers or default_workers(cpus_per_unit), cpus_per_unit)
+    return executor.start(
+        backend,
+        workers,
+        address,
+        cpus_per_task=cpus_per_unit,
+        threads=True,
+        stop_running=stop_children,
+        retry_lost=False,
+    )

@@ -1,0 +1,112 @@
+"""Training throughput of the device backend against the host backend (issue 36): AdaRL on Hopper
+(nominal physics), seed-steps/s at several seed counts, one chunk's time, and the memory used.
+
+    python bench/accelerator_learner.py --seeds 1 16 64 256 1024 --chunks 20 --csv OUT.csv
+    python bench/accelerator_learner.py --host --chunks 20          # the host backend, one seed
+
+Each measurement builds the learner the one loop would (`trainers.make_learner`, the config
+`adarl train --algo adarl --backend device --dynamics nominal --seeds 0-(N-1)` resolves to, with
+`start_steps` = `update_after` = one chunk so that every timed chunk updates), calls `advance` once
+to compile and fill one chunk, then times `--chunks` more advances (each at least one chunk) of `update_every` env steps and
+`update_every` gradient steps each, for all seeds at once. Prints one CSV line per measurement:
+
+    backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb
+
+`update_ms`: a chunk's time over its `update_every` gradient steps (the env steps included: an
+upper bound on one update). `memory_mb`: the device's peak bytes in use where JAX reports them
+(GPU), else the process's peak resident set. A seed count that does not fit (memory, time) prints
+a `failed` line and the next one runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import time
+
+HEADER = "backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
+
+
+def config_for(backend: str, n_seeds: int, buffer_size: int, update_every: int):
+    from adarl.algos import registry
+
+    flags = {
+        "task": "hopper",
+        "backend": backend,
+        "dynamics": "nominal",
+        "seeds": list(range(n_seeds)),
+        "buffer_size": buffer_size,
+        "update_every": update_every,
+        "start_steps": update_every,
+        "update_after": update_every,
+        "total_steps": 10**9 // update_every * update_every,
+    }
+    return registry.resolve_config("adarl", None, flags)
+
+
+def memory_mb() -> float:
+    import jax
+
+    stats = jax.devices()[0].memory_stats() or {}
+    if "peak_bytes_in_use" in stats:
+        return stats["peak_bytes_in_use"] / 2**20
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**10  # kB on Linux
+
+
+def measure(backend: str, n_seeds: int, chunks: int, buffer_size: int, update_every: int) -> str:
+    import jax
+
+    from adarl.train.trainers import make_learner
+
+    config = config_for(backend, n_seeds, buffer_size, update_every)
+    learner = make_learner(config)
+    learner.fresh()
+    step = 0
+    start = time.perf_counter()
+    step = learner.advance(step).step  # compiles, fills the first chunk
+    jax.block_until_ready(getattr(learner, "state", None))
+    compile_s = time.perf_counter() - start
+    start, first = time.perf_counter(), step
+    for _ in range(chunks):  # an advance may cover several chunks (up to the loop's next event)
+        step = learner.advance(step).step
+    jax.block_until_ready(getattr(learner, "state", None))
+    run_s = time.perf_counter() - start
+    chunk_s = run_s * update_every / (step - first)
+    rate = n_seeds * (step - first) / run_s
+    platform = jax.devices()[0].platform
+    return (
+        f"{backend},{platform},{n_seeds},{update_every},{compile_s:.1f},{chunk_s:.4f},"
+        f"{rate:.1f},{1e3 * chunk_s / update_every:.3f},{memory_mb():.0f}"
+    )
+
+
+def emit(line: str, csv: str | None) -> None:
+    print(line, flush=True)
+    if csv:
+        new = not os.path.exists(csv)
+        with open(csv, "a") as f:
+            f.write((HEADER + "\n" if new else "") + line + "\n")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1])
+    parser.add_argument("--host", action="store_true", help="the host backend, one lane per seed")
+    parser.add_argument("--chunks", type=int, default=20)
+    parser.add_argument("--update-every", type=int, default=50)
+    parser.add_argument("--buffer-size", type=int, default=100_000)
+    parser.add_argument("--csv", default=None)
+    args = parser.parse_args(argv)
+    backend = "host" if args.host else "device"
+    for n in args.seeds:
+        try:
+            line = measure(backend, n, args.chunks, args.buffer_size, args.update_every)
+        except Exception as exc:  # one seed count failing (memory) must not lose the others
+            line = f"{backend},failed,{n},{args.update_every},,,,,{type(exc).__name__}"
+        emit(line, args.csv)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
