@@ -14,7 +14,7 @@ import pytest
 
 from adarl.cli.main import main
 from adarl.cli.train import add_arguments, build_config
-from adarl.evaluation import summary
+from adarl.report import summary
 from adarl.runs import tracking
 from adarl.sweeps import spec, worker
 from adarl.train import launch
