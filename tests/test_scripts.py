@@ -167,3 +167,32 @@ def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
     host, device = (row.split(",") for row in rows[1:])
     assert host[:3] == ["host", "cpu", "1"] and device[:3] == ["device", "cpu", "2"]
     assert float(host[6]) > 0 and float(device[6]) > 0  # seed-steps/s
+
+
+def test_device_parity_compares_the_final_evaluations(tmp_path):
+    """bench/device_parity.py on two synthetic runs: the scores are the mean returns of each
+    seed's last nominal evaluation, read back here from eval.csv by hand."""
+    import csv
+
+    from synthetic_runs import write_run
+
+    host = write_run(tmp_path, "host", algo="sac", quality=1.0)
+    device = write_run(tmp_path, "device", algo="sac", quality=1.5)
+
+    def last(run):
+        rows = [r for r in csv.DictReader((run / "eval.csv").open()) if r["dynamics"] == "nominal"]
+        step = max(int(r["step"]) for r in rows)
+        by_seed = {}
+        for r in rows:
+            if int(r["step"]) == step:
+                by_seed.setdefault(int(r["seed"]), []).append(float(r["return"]))
+        return [sum(v) / len(v) for _, v in sorted(by_seed.items())]
+
+    difference = sum(last(device)) / 3 - sum(last(host)) / 3
+    out = run_script(
+        "bench/device_parity.py", str(host), str(device), "--copy", str(tmp_path / "c")
+    )
+    assert f"| {difference:+,.0f} | [" in out
+    assert (tmp_path / "c" / "device" / "eval.csv").read_bytes() == (
+        device / "eval.csv"
+    ).read_bytes()
