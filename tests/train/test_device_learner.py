@@ -245,3 +245,45 @@ def test_nominal_dynamics_run_on_the_host_tasks_nominal_model():
         np.testing.assert_array_equal(getattr(device, name), getattr(host, name), name)
     assert fixed_physics(config).episode_params(1, 7) == env.dynamics_params
     assert env.dynamics_params["torso_length"] == 0.4  # not Gymnasium's 0.2
+
+
+@pytest.mark.slow
+def test_a_sigkilled_device_run_resumes_to_the_uninterrupted_runs_bits(tmp_path):
+    """A real SIGKILL of `adarl train --backend device` (AdaRL, `paper` physics through the ring,
+    truncations before and after the kill) after its first checkpoint, then `--resume`: the same
+    CSVs and final arrays as the same run left alone."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    flags = ["--algo", "adarl", "--backend", "device", "--task", "hopper", "--dynamics", "paper"]
+    flags += ["--seeds", "0,1", "--hidden", "32,32", "--total-steps", "800", "--start-steps", "200"]
+    flags += ["--update-after", "200", "--truncate-every", "200", "--warmup-steps", "50"]
+    flags += ["--checkpoint-every", "400", "--eval-every", "400", "--eval-episodes", "1"]
+    flags += ["--log-every", "200", "--buffer-size", "1000", "--batch-size", "32"]
+    flags += ["--max-episode-steps", "100", "--retain-samples", "32", "--no-progress"]
+    train = [sys.executable, "-m", "adarl.cli.main", "train", *flags]
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    whole = subprocess.Popen([*train, "--out", str(tmp_path / "whole")], **quiet)
+    killed_dir = tmp_path / "killed"
+    proc = subprocess.Popen([*train, "--out", str(killed_dir)], **quiet)
+    deadline = time.time() + 600
+    while time.time() < deadline and not checkpoints.checkpoint_dirs(killed_dir):
+        time.sleep(0.1)
+        assert proc.poll() is None, "training ended before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (killed_dir / "DONE").exists()
+    resume = [sys.executable, "-m", "adarl.cli.main", "train", "--resume", str(killed_dir)]
+    done = subprocess.run([*resume, "--no-progress"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert whole.wait() == 0
+    for name in ("train.csv", "episodes.csv", "truncations.csv"):
+        assert _csv(killed_dir, name) == _csv(tmp_path / "whole", name), name
+    last = {run: checkpoints.checkpoint_dirs(run)[-1] for run in (killed_dir, tmp_path / "whole")}
+    a, b = (np.load(path / "arrays.npz") for path in last.values())
+    assert sorted(a.files) == sorted(b.files)
+    for key in a.files:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
