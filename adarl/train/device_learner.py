@@ -42,7 +42,7 @@ from adarl.train.sac_learner import (
     LEGACY_TRUNCATION_COLUMNS,
     TRUNCATION_COLUMNS,
     finite_parameters,
-    truncation_decision,
+    truncation_rows,
 )
 
 BACKEND = "device"
@@ -332,25 +332,7 @@ class DeviceSACLearner:
         old = jax.device_get(self.fns.ranks(self.state))
         self.state, report = self.fns.truncate(self.state)
         report = jax.device_get(report)
-        spectra = {name: np.asarray(item[0]) for name, item in report.items()}
-        rows = []
-        for name, (_, proposed, new, candidate, error) in report.items():
-            for i, seed in enumerate(self.seeds):
-                rows.append(
-                    {
-                        "step": step,
-                        "seed": seed,
-                        "layer": name,
-                        "old_rank": int(old[name][i]),
-                        "proposed_rank": int(proposed[i]),
-                        "new_rank": int(new[i]),
-                        "candidate_rank": int(candidate[i]),
-                        "error": float(error[i]),
-                        "decision": truncation_decision(
-                            int(old[name][i]), int(candidate[i]), int(new[i]), c.apply_cuts
-                        ),
-                    }
-                )
+        spectra, rows = truncation_rows(step, self.seeds, old, report, c.apply_cuts)
         return Truncation(spectra, rows)
 
     # ------------------------------------------------------------------ what the loop reads

@@ -386,25 +386,7 @@ class SACLearner:
                 report[name] = (_pad_last(s, full[name]), *rest)
             reports.append(report)
         report = _concat_lanes(reports)
-        spectra = {name: np.asarray(item[0]) for name, item in report.items()}
-        rows = []
-        for name, (_, proposed, new, candidate, error) in report.items():
-            for i, seed in enumerate(self.seeds):
-                rows.append(
-                    {
-                        "step": step,
-                        "seed": seed,
-                        "layer": name,
-                        "old_rank": int(old[name][i]),
-                        "proposed_rank": int(proposed[i]),
-                        "new_rank": int(new[i]),
-                        "candidate_rank": int(candidate[i]),
-                        "error": float(error[i]),
-                        "decision": truncation_decision(
-                            int(old[name][i]), int(candidate[i]), int(new[i]), c.apply_cuts
-                        ),
-                    }
-                )
+        spectra, rows = truncation_rows(step, self.seeds, old, report, c.apply_cuts)
         if c.compact_bottlenecks:
             self.narrow_bottlenecks(self.gather(_ranks))
         return Truncation(spectra, rows)
@@ -478,6 +460,34 @@ class SACLearner:
             found[name] = [s for s, o in zip(self.seeds, ok) if not o]
         found["episode return"] = nonfinite_seeds(self.seeds, self.ep_return)
         return {quantity: seeds for quantity, seeds in found.items() if seeds}
+
+
+def truncation_rows(
+    step: int, seeds, old: dict, report: dict, apply_cuts: bool
+) -> tuple[dict[str, np.ndarray], list[dict]]:
+    """A truncation's spectra (one row per seed) and its truncations.csv rows, one per layer and
+    seed, from `sac.truncate`'s report (singular values, proposed, new and candidate rank, error
+    per layer, seeds stacked) and the ranks before it (`old`)."""
+    spectra = {name: np.asarray(item[0]) for name, item in report.items()}
+    rows = []
+    for name, (_, proposed, new, candidate, error) in report.items():
+        for i, seed in enumerate(seeds):
+            rows.append(
+                {
+                    "step": step,
+                    "seed": seed,
+                    "layer": name,
+                    "old_rank": int(old[name][i]),
+                    "proposed_rank": int(proposed[i]),
+                    "new_rank": int(new[i]),
+                    "candidate_rank": int(candidate[i]),
+                    "error": float(error[i]),
+                    "decision": truncation_decision(
+                        int(old[name][i]), int(candidate[i]), int(new[i]), apply_cuts
+                    ),
+                }
+            )
+    return spectra, rows
 
 
 def truncation_decision(

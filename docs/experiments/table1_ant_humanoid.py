@@ -214,6 +214,9 @@ def report(data: dict) -> list[str]:
 
 
 def main(argv: list[str]) -> int:
+    if argv[:1] in (["-h"], ["--help"]):
+        print(__doc__)
+        return 0
     if argv[:1] == ["export"] and len(argv) == 2:
         written = export(Path(argv[1]))
         print(f"wrote {len(written)} files under {ROWS}")

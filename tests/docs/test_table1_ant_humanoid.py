@@ -101,3 +101,5 @@ def test_report_detects_a_large_gap_on_both_tasks(script, tmp_path):
 def test_command_line(script, tmp_path, capsys):
     assert script.main(["nonsense"]) == 2
     assert "usage" in capsys.readouterr().err
+    assert script.main(["--help"]) == 0
+    assert "export" in capsys.readouterr().out
