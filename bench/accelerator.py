@@ -1,13 +1,20 @@
-"""Device Hopper throughput: env-steps/s of `adarl.device.hopper` (MJX) for a vmapped batch.
+"""Device physics throughput: env-steps/s of a device task (`adarl.device.tasks`, MJX) for a
+vmapped batch, against MuJoCo C on one thread.
 
-    python bench/accelerator.py --platform gpu --batch 1 64 1024 8192 --steps 1000
-    python bench/accelerator.py --mujoco-c --steps 20000       # MuJoCo C, one thread
+    python bench/accelerator.py --task hopper --platform gpu --batch 1 1024 8192 --steps 1000
+    python bench/accelerator.py --task hopper --mujoco-c --steps 20000
+    python bench/accelerator.py --task hopper --iterations 1 --ls-iterations 4 --batch 1024
 
-Prints one CSV line per measurement (``kind,platform,batch,steps,compile_s,run_s,env_steps_per_s``)
+``--iterations``/``--ls-iterations`` cap the constraint solver (the XML's are 100/50, Humanoid's
+50/50; MJX's own test models and MuJoCo Playground's locomotion XMLs use 1 and 4-5 for speed on a
+GPU): a different physics, measured here for its speed only; the kind column says which.
+
+Prints one CSV line per measurement (``task,kind,platform,batch,steps,compile_s,run_s,env_steps_per_s``)
 and appends it to ``--csv``. Random actions in [-1, 1], one jitted `lax.scan` of ``--steps`` env
-steps (4 physics steps each), float32, no resets (the physics runs on after a fall, which costs
-the same); timed after compilation with `block_until_ready`. The model is Gymnasium's
-hopper.xml, or ``--xml``.
+steps (the task's frame skip of physics steps each), float32, no resets (the physics runs on
+after a fall, which costs about the same); timed after compilation with `block_until_ready`. The
+model is Gymnasium's XML of the task (MuJoCo C runs it as it is: Humanoid with PGS, the device
+task with Newton, docs/envs.md "Device physics").
 """
 
 from __future__ import annotations
@@ -16,21 +23,19 @@ import argparse
 import os
 import time
 
-HEADER = "kind,platform,batch,steps,compile_s,run_s,env_steps_per_s"
+HEADER = "task,kind,platform,batch,steps,compile_s,run_s,env_steps_per_s"
 
 
-def hopper_module():
-    from adarl.device import hopper
+def rules_of(task: str):
+    from adarl.device.tasks import RULES
 
-    return hopper
+    return RULES[task]
 
 
-def load_model(xml: str | None):
-    import mujoco
+def load_model(task: str):
+    from adarl.device.common import gymnasium_model
 
-    if xml:
-        return mujoco.MjModel.from_xml_path(xml)
-    return hopper_module().gymnasium_model()
+    return gymnasium_model(rules_of(task).xml)
 
 
 def emit(line: str, csv: str | None) -> None:
@@ -43,15 +48,20 @@ def emit(line: str, csv: str | None) -> None:
             f.write(line + "\n")
 
 
-def device_rate(model, platform: str, batch: int, steps: int) -> tuple[float, float]:
+def device_rate(
+    name: str, platform: str, batch: int, steps: int, solver=None
+) -> tuple[float, float]:
     import jax
     import jax.numpy as jnp
 
-    HopperTask = hopper_module().HopperTask
+    from adarl.device.tasks import make
 
+    mj_model = load_model(name)
+    if solver:
+        mj_model.opt.iterations, mj_model.opt.ls_iterations = solver
     device = jax.devices(platform)[0]
     with jax.default_device(device):
-        task = HopperTask(model, dtype=jnp.float32)
+        task = make(name, mj_model=mj_model, dtype=jnp.float32)
 
         @jax.jit
         def rollout(key):
@@ -78,37 +88,51 @@ def device_rate(model, platform: str, batch: int, steps: int) -> tuple[float, fl
         return compile_s, time.perf_counter() - start
 
 
-def mujoco_c_rate(model, steps: int) -> float:
+def mujoco_c_rate(name: str, steps: int) -> float:
     import mujoco
     import numpy as np
 
+    model, frame_skip = load_model(name), rules_of(name).frame_skip
     data = mujoco.MjData(model)
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, model.nu))
     start = time.perf_counter()
     for a in actions:
         data.ctrl[:] = a
-        mujoco.mj_step(model, data, nstep=4)
+        mujoco.mj_step(model, data, nstep=frame_skip)
     return time.perf_counter() - start
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument(
+        "--task", default="hopper", choices=["hopper", "walker2d", "ant", "humanoid"]
+    )
     parser.add_argument("--platform", default="gpu")
     parser.add_argument("--batch", type=int, nargs="+", default=[1])
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--mujoco-c", action="store_true", help="time MuJoCo C instead")
-    parser.add_argument("--xml", default=None)
+    parser.add_argument("--iterations", type=int, default=None, help="the solver's, capped")
+    parser.add_argument("--ls-iterations", type=int, default=None, help="its line search's")
     parser.add_argument("--csv", default=None)
     args = parser.parse_args(argv)
-    model = load_model(args.xml)
     if args.mujoco_c:
-        run_s = mujoco_c_rate(model, args.steps)
-        emit(f"mujoco_c,cpu,1,{args.steps},0,{run_s:.3f},{args.steps / run_s:.1f}", args.csv)
+        run_s = mujoco_c_rate(args.task, args.steps)
+        line = f"{args.task},mujoco_c,cpu,1,{args.steps},0,{run_s:.3f},{args.steps / run_s:.1f}"
+        emit(line, args.csv)
         return
+    solver = None
+    kind = "mjx"
+    if args.iterations or args.ls_iterations:
+        model = load_model(args.task)
+        solver = (
+            args.iterations or model.opt.iterations,
+            args.ls_iterations or model.opt.ls_iterations,
+        )
+        kind = f"mjx-iter{solver[0]}-ls{solver[1]}"
     for batch in args.batch:
-        compile_s, run_s = device_rate(model, args.platform, batch, args.steps)
+        compile_s, run_s = device_rate(args.task, args.platform, batch, args.steps, solver)
         rate = batch * args.steps / run_s
-        line = f"mjx,{args.platform},{batch},{args.steps},{compile_s:.1f},{run_s:.3f},{rate:.1f}"
+        line = f"{args.task},{kind},{args.platform},{batch},{args.steps},{compile_s:.1f},{run_s:.3f},{rate:.1f}"
         emit(line, args.csv)
 
 

@@ -1,27 +1,36 @@
 #!/usr/bin/env bash
-# The prepared accelerator check of issue 36 (≤ 8 minutes on the device machine, one table):
+# The prepared accelerator check of issue 36 (about 8 minutes on the device machine, one table):
 #   1. the host backend's training rate (AdaRL, Hopper, one seed; bench/accelerator_learner.py --host)
-#   2. the device backend's training rate at 1, 16, 64, 256, 1,024 seeds: seed-steps/s, one
-#      chunk's time over its updates, the memory used (bench/accelerator_learner.py)
-#   3. raw physics: MuJoCo C one thread, and MJX env-steps/s of a vmapped batch (bench/accelerator.py)
+#   2. the device backend's training rate at LEARNER_SEEDS seeds (Hopper, nominal) and PAPER_SEEDS
+#      (Walker2d, the paper's per-episode physics): seed-steps/s, one chunk's time over its
+#      updates, the memory used (bench/accelerator_learner.py)
+#   3. raw physics per task: MuJoCo C one thread, and MJX env-steps/s of a vmapped batch with the
+#      XML's solver and with the solver capped at SOLVER iterations (bench/accelerator.py)
 # Run from the repository root. Where adarl's dependencies are missing (the device machine has
 # Python 3.12 and JAX but no MuJoCo), put their wheels in .whl/ first (docs/benchmarks.md,
 # "Accelerator groundwork": the list and the pip download command) and carry it.
-# Env: OUT (results folder, default .), WHEELS, PYTHON, LEARNER_SEEDS, CHUNKS, BUFFER, ENV_BATCHES, STEPS,
-# PLATFORM (default gpu), LIMIT (seconds per measurement).
+# Env: OUT (results folder, default .), WHEELS, PYTHON, LEARNER_SEEDS, PAPER_SEEDS, CHUNKS, BUFFER,
+# PHYSICS (task:batch,batch,... entries; empty: no raw physics), SOLVER (iterations,ls_iterations;
+# empty: the XML's only), STEPS, PLATFORM (default gpu), LIMIT (seconds per measurement).
+# Each measurement's stderr goes to $OUT/accelerator.err. Defaults sized from the H200 run of
+# 2026-12-04 (docs/benchmarks.md): a device measurement compiles for ~45-60 s and a Hopper chunk
+# took 4-6 s there, so 5 timed chunks and 150 s each.
 set -u
 OUT=${OUT:-.}
-LEARNER_SEEDS=${LEARNER_SEEDS:-"1 16 64 256 1024"}
-CHUNKS=${CHUNKS:-20}
+LEARNER_SEEDS=${LEARNER_SEEDS-"1 64 1024"}
+PAPER_SEEDS=${PAPER_SEEDS-1024}  # Walker2d under the paper's per-episode torso/foot schedule
+CHUNKS=${CHUNKS:-5}
 BUFFER=${BUFFER:-100000}
-ENV_BATCHES=${ENV_BATCHES:-"1 1024 8192"}
+PHYSICS=${PHYSICS-"hopper:1024"}
+SOLVER=${SOLVER-1,4}
 STEPS=${STEPS:-1000}
 PLATFORM=${PLATFORM:-gpu}
-LIMIT=${LIMIT:-100}
+LIMIT=${LIMIT:-150}
 mkdir -p "$OUT"
 CSV="$OUT/accelerator.csv"
 LEARN="$OUT/accelerator-learner.csv"
-rm -f "$CSV" "$LEARN"
+ERR="$OUT/accelerator.err"
+rm -f "$CSV" "$LEARN" "$ERR"
 WHEELS=${WHEELS:-.whl}  # WHEELS=none: use the Python at hand as it is
 if ls "$WHEELS"/*.whl >/dev/null 2>&1; then
   python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
@@ -39,21 +48,34 @@ nvidia-smi -L 2>/dev/null || echo "nvidia-smi: none"
 N=0
 run() {  # one measurement, its own time limit: a failure or timeout loses only itself
   N=$((N + 1))
-  timeout "$LIMIT" $PY "$@" 2> "$OUT/accelerator-$N.err"
+  echo "== $N at ${SECONDS}s: $*" >> "$ERR"
+  timeout "$LIMIT" $PY "$@" 2> "$ERR.last"
   rc=$?
-  [ $rc -eq 0 ] || { echo "failed,$*,rc=$rc"; grep -v -i warn "$OUT/accelerator-$N.err" | tail -3; }
+  cat "$ERR.last" >> "$ERR"
+  [ $rc -eq 0 ] || { echo "failed,$*,rc=$rc"; grep -v -i warn "$ERR.last" | tail -3; }
+  rm -f "$ERR.last"
 }
-echo "backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
+echo "task,dynamics,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
 JAX_PLATFORMS=cpu run bench/accelerator_learner.py --host --seeds 1 --chunks "$CHUNKS" \
   --buffer-size "$BUFFER" --csv "$LEARN"
 for n in $LEARNER_SEEDS; do
   run bench/accelerator_learner.py --seeds "$n" --chunks "$CHUNKS" --buffer-size "$BUFFER" --csv "$LEARN"
 done
-if [ -n "$ENV_BATCHES" ]; then
-  echo "kind,platform,batch,steps,compile_s,run_s,env_steps_per_s"
-  run bench/accelerator.py --mujoco-c --steps $((STEPS * 20)) --csv "$CSV"
-  for b in $ENV_BATCHES; do
-    run bench/accelerator.py --platform "$PLATFORM" --batch "$b" --steps "$STEPS" --csv "$CSV"
+for n in $PAPER_SEEDS; do
+  run bench/accelerator_learner.py --task walker2d --dynamics paper --seeds "$n" --chunks "$CHUNKS" \
+    --buffer-size "$BUFFER" --csv "$LEARN"
+done
+if [ -n "$PHYSICS" ]; then
+  echo "task,kind,platform,batch,steps,compile_s,run_s,env_steps_per_s"
+  for entry in $PHYSICS; do
+    task=${entry%%:*}
+    batches=${entry#*:}
+    run bench/accelerator.py --task "$task" --mujoco-c --steps $((STEPS * 20)) --csv "$CSV"
+    run bench/accelerator.py --task "$task" --platform "$PLATFORM" --batch ${batches//,/ } \
+      --steps "$STEPS" --csv "$CSV"
+    [ -z "$SOLVER" ] || run bench/accelerator.py --task "$task" --platform "$PLATFORM" \
+      --batch ${batches//,/ } --steps "$STEPS" --csv "$CSV" \
+      --iterations "${SOLVER%,*}" --ls-iterations "${SOLVER#*,}"
   done
 fi
-echo "written: $LEARN ${ENV_BATCHES:+$CSV}"
+echo "written in ${SECONDS}s: $LEARN ${PHYSICS:+$CSV}"

@@ -1,16 +1,18 @@
 """Training throughput of the device backend against the host backend (issue 36): AdaRL on Hopper
-(nominal physics), seed-steps/s at several seed counts, one chunk's time, and the memory used.
+(nominal physics, or `--task`/`--dynamics`), seed-steps/s at several seed counts, one chunk's
+time, and the memory used.
 
     python bench/accelerator_learner.py --seeds 1 16 64 256 1024 --chunks 20 --csv OUT.csv
     python bench/accelerator_learner.py --host --chunks 20          # the host backend, one seed
+    python bench/accelerator_learner.py --task walker2d --dynamics paper --seeds 1024
 
 Each measurement builds the learner the one loop would (`trainers.make_learner`, the config
-`adarl train --algo adarl --backend device --dynamics nominal --seeds 0-(N-1)` resolves to, with
+`adarl train --algo adarl --backend device --task T --dynamics D --seeds 0-(N-1)` resolves to, with
 `start_steps` = `update_after` = one chunk so that every timed chunk updates), calls `advance` once
 to compile and fill one chunk, then times `--chunks` more advances (each at least one chunk) of `update_every` env steps and
 `update_every` gradient steps each, for all seeds at once. Prints one CSV line per measurement:
 
-    backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb
+    task,dynamics,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb
 
 `update_ms`: a chunk's time over its `update_every` gradient steps (the env steps included: an
 upper bound on one update). `memory_mb`: the device's peak bytes in use where JAX reports them
@@ -25,16 +27,18 @@ import os
 import resource
 import time
 
-HEADER = "backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
+HEADER = "task,dynamics,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
 
 
-def config_for(backend: str, n_seeds: int, buffer_size: int, update_every: int):
+def config_for(
+    task: str, dynamics: str, backend: str, n_seeds: int, buffer_size: int, update_every: int
+):
     from adarl.algos import registry
 
     flags = {
-        "task": "hopper",
+        "task": task,
         "backend": backend,
-        "dynamics": "nominal",
+        "dynamics": dynamics,
         "seeds": list(range(n_seeds)),
         "buffer_size": buffer_size,
         "update_every": update_every,
@@ -54,12 +58,13 @@ def memory_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**10  # kB on Linux
 
 
-def measure(backend: str, n_seeds: int, chunks: int, buffer_size: int, update_every: int) -> str:
+def measure(args, backend: str, n_seeds: int) -> str:
     import jax
 
     from adarl.train.trainers import make_learner
 
-    config = config_for(backend, n_seeds, buffer_size, update_every)
+    chunks, update_every = args.chunks, args.update_every
+    config = config_for(args.task, args.dynamics, backend, n_seeds, args.buffer_size, update_every)
     learner = make_learner(config)
     learner.fresh()
     step = 0
@@ -76,7 +81,7 @@ def measure(backend: str, n_seeds: int, chunks: int, buffer_size: int, update_ev
     rate = n_seeds * (step - first) / run_s
     platform = jax.devices()[0].platform
     return (
-        f"{backend},{platform},{n_seeds},{update_every},{compile_s:.1f},{chunk_s:.4f},"
+        f"{args.task},{args.dynamics},{backend},{platform},{n_seeds},{update_every},{compile_s:.1f},{chunk_s:.4f},"
         f"{rate:.1f},{1e3 * chunk_s / update_every:.3f},{memory_mb():.0f}"
     )
 
@@ -93,6 +98,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--host", action="store_true", help="the host backend, one lane per seed")
+    parser.add_argument("--task", default="hopper", choices=["hopper", "walker2d"])
+    parser.add_argument("--dynamics", default="nominal")
     parser.add_argument("--chunks", type=int, default=20)
     parser.add_argument("--update-every", type=int, default=50)
     parser.add_argument("--buffer-size", type=int, default=100_000)
@@ -101,9 +108,9 @@ def main(argv=None) -> int:
     backend = "host" if args.host else "device"
     for n in args.seeds:
         try:
-            line = measure(backend, n, args.chunks, args.buffer_size, args.update_every)
+            line = measure(args, backend, n)
         except Exception as exc:  # one seed count failing (memory) must not lose the others
-            line = f"{backend},failed,{n},{args.update_every},,,,,{type(exc).__name__}"
+            line = f"{args.task},{args.dynamics},{backend},failed,{n},{args.update_every},,,,,{type(exc).__name__}"
         emit(line, args.csv)
     return 0
 
