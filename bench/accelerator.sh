@@ -1,28 +1,27 @@
 #!/usr/bin/env bash
-# The prepared accelerator check of issue 36 (about 8 minutes on the device machine, one table):
-#   1. the host backend's training rate (AdaRL, Hopper, one seed; bench/accelerator_learner.py --host)
-#   2. the device backend's training rate at LEARNER_SEEDS seeds (Hopper, nominal) and PAPER_SEEDS
-#      (Walker2d, the paper's per-episode physics): seed-steps/s, one chunk's time over its
-#      updates, the memory used (bench/accelerator_learner.py)
-#   3. raw physics per task: MuJoCo C one thread, and MJX env-steps/s of a vmapped batch with the
-#      XML's solver and with the solver capped at SOLVER iterations (bench/accelerator.py)
+# The prepared accelerator check of issue 36 (about 8 minutes on the device machine, two tables):
+#   1. training (bench/accelerator_learner.py): the host backend's rate (AdaRL, Hopper, one seed,
+#      on the machine's CPU), then the device backend's for each LEARNER_RUNS entry
+#      (task:dynamics:seeds:solver): seed-steps/s, one chunk's time over its updates, the memory
+#   2. raw physics per PHYSICS entry (bench/accelerator.py): MuJoCo C on one thread, and MJX
+#      env-steps/s of a vmapped batch with the XML's solver and with each of SOLVERS
 # Run from the repository root. Where adarl's dependencies are missing (the device machine has
 # Python 3.12 and JAX but no MuJoCo), put their wheels in .whl/ first (docs/benchmarks.md,
 # "Accelerator groundwork": the list and the pip download command) and carry it.
-# Env: OUT (results folder, default .), WHEELS, PYTHON, LEARNER_SEEDS, PAPER_SEEDS, CHUNKS, BUFFER,
-# PHYSICS (task:batch,batch,... entries; empty: no raw physics), SOLVER (iterations,ls_iterations;
-# empty: the XML's only), STEPS, PLATFORM (default gpu), LIMIT (seconds per measurement).
-# Each measurement's stderr goes to $OUT/accelerator.err. Defaults sized from the H200 run of
-# 2026-12-04 (docs/benchmarks.md): a device measurement compiles for ~45-60 s and a Hopper chunk
-# took 4-6 s there, so 5 timed chunks and 150 s each.
+# Env: OUT (results folder, default .), WHEELS, PYTHON, LEARNER_RUNS, CHUNKS, BUFFER,
+# PHYSICS (task:batch,batch,... entries; empty: no raw physics), SOLVERS (ITERATIONS,LS entries
+# beside the XML's), STEPS, PLATFORM (default gpu), LIMIT (seconds per measurement).
+# Each measurement's stderr goes to $OUT/accelerator.err. Sized from the H200 run of 2026-12-04
+# (docs/benchmarks.md): a device measurement compiled for ~45-60 s and a Hopper chunk took
+# 4-6 s there with the XML's solver, so 5 timed chunks and 150 s each; the most telling first.
 set -u
 OUT=${OUT:-.}
-LEARNER_SEEDS=${LEARNER_SEEDS-"1 64 1024"}
-PAPER_SEEDS=${PAPER_SEEDS-1024}  # Walker2d under the paper's per-episode torso/foot schedule
+LEARNER_RUNS=${LEARNER_RUNS-"hopper:nominal:1024:100,4 hopper:nominal:1024:xml \
+hopper:nominal:1:100,4 walker2d:paper:1024:100,4 hopper:nominal:64:100,4"}
 CHUNKS=${CHUNKS:-5}
 BUFFER=${BUFFER:-100000}
 PHYSICS=${PHYSICS-"hopper:1024"}
-SOLVER=${SOLVER-1,4}
+SOLVERS=${SOLVERS-"100,4 1,4"}
 STEPS=${STEPS:-1000}
 PLATFORM=${PLATFORM:-gpu}
 LIMIT=${LIMIT:-150}
@@ -55,15 +54,13 @@ run() {  # one measurement, its own time limit: a failure or timeout loses only 
   [ $rc -eq 0 ] || { echo "failed,$*,rc=$rc"; grep -v -i warn "$ERR.last" | tail -3; }
   rm -f "$ERR.last"
 }
-echo "task,dynamics,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
+echo "task,dynamics,solver,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
 JAX_PLATFORMS=cpu run bench/accelerator_learner.py --host --seeds 1 --chunks "$CHUNKS" \
   --buffer-size "$BUFFER" --csv "$LEARN"
-for n in $LEARNER_SEEDS; do
-  run bench/accelerator_learner.py --seeds "$n" --chunks "$CHUNKS" --buffer-size "$BUFFER" --csv "$LEARN"
-done
-for n in $PAPER_SEEDS; do
-  run bench/accelerator_learner.py --task walker2d --dynamics paper --seeds "$n" --chunks "$CHUNKS" \
-    --buffer-size "$BUFFER" --csv "$LEARN"
+for entry in $LEARNER_RUNS; do
+  IFS=: read -r task dynamics seeds solver <<< "$entry"
+  run bench/accelerator_learner.py --task "$task" --dynamics "$dynamics" --seeds "$seeds" \
+    --device-solver "$solver" --chunks "$CHUNKS" --buffer-size "$BUFFER" --csv "$LEARN"
 done
 if [ -n "$PHYSICS" ]; then
   echo "task,kind,platform,batch,steps,compile_s,run_s,env_steps_per_s"
@@ -73,9 +70,10 @@ if [ -n "$PHYSICS" ]; then
     run bench/accelerator.py --task "$task" --mujoco-c --steps $((STEPS * 20)) --csv "$CSV"
     run bench/accelerator.py --task "$task" --platform "$PLATFORM" --batch ${batches//,/ } \
       --steps "$STEPS" --csv "$CSV"
-    [ -z "$SOLVER" ] || run bench/accelerator.py --task "$task" --platform "$PLATFORM" \
-      --batch ${batches//,/ } --steps "$STEPS" --csv "$CSV" \
-      --iterations "${SOLVER%,*}" --ls-iterations "${SOLVER#*,}"
+    for solver in $SOLVERS; do
+      run bench/accelerator.py --task "$task" --platform "$PLATFORM" --batch ${batches//,/ } \
+        --steps "$STEPS" --csv "$CSV" --iterations "${solver%,*}" --ls-iterations "${solver#*,}"
+    done
   done
 fi
 echo "written in ${SECONDS}s: $LEARN ${PHYSICS:+$CSV}"

@@ -5,6 +5,7 @@ time, and the memory used.
     python bench/accelerator_learner.py --seeds 1 16 64 256 1024 --chunks 20 --csv OUT.csv
     python bench/accelerator_learner.py --host --chunks 20          # the host backend, one seed
     python bench/accelerator_learner.py --task walker2d --dynamics paper --seeds 1024
+    python bench/accelerator_learner.py --seeds 1024 --device-solver 100,4   # line search capped
 
 Each measurement builds the learner the one loop would (`trainers.make_learner`, the config
 `adarl train --algo adarl --backend device --task T --dynamics D --seeds 0-(N-1)` resolves to, with
@@ -12,9 +13,9 @@ Each measurement builds the learner the one loop would (`trainers.make_learner`,
 to compile and fill one chunk, then times `--chunks` more advances (each at least one chunk) of `update_every` env steps and
 `update_every` gradient steps each, for all seeds at once. Prints one CSV line per measurement:
 
-    task,dynamics,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb
+    task,dynamics,solver,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb
 
-`update_ms`: a chunk's time over its `update_every` gradient steps (the env steps included: an
+`solver`: the device's `--device-solver` (`xml`, or `100/4` for 100,4). `update_ms`: a chunk's time over its `update_every` gradient steps (the env steps included: an
 upper bound on one update). `memory_mb`: the device's peak bytes in use where JAX reports them
 (GPU), else the process's peak resident set. A seed count that does not fit (memory, time) prints
 a `failed` line and the next one runs.
@@ -27,11 +28,17 @@ import os
 import resource
 import time
 
-HEADER = "task,dynamics,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
+HEADER = "task,dynamics,solver,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
 
 
 def config_for(
-    task: str, dynamics: str, backend: str, n_seeds: int, buffer_size: int, update_every: int
+    task: str,
+    dynamics: str,
+    backend: str,
+    n_seeds: int,
+    buffer_size: int,
+    update_every: int,
+    solver: str = "xml",
 ):
     from adarl.algos import registry
 
@@ -46,7 +53,14 @@ def config_for(
         "update_after": update_every,
         "total_steps": 10**9 // update_every * update_every,
     }
+    if backend == "device":
+        flags["device_solver"] = solver
     return registry.resolve_config("adarl", None, flags)
+
+
+def solver_column(solver: str, backend: str) -> str:
+    """The solver as the CSV shows it: empty for the host, `100/4` for `--device-solver 100,4`."""
+    return solver.replace(",", "/") if backend == "device" else ""
 
 
 def memory_mb() -> float:
@@ -64,7 +78,15 @@ def measure(args, backend: str, n_seeds: int) -> str:
     from adarl.train.trainers import make_learner
 
     chunks, update_every = args.chunks, args.update_every
-    config = config_for(args.task, args.dynamics, backend, n_seeds, args.buffer_size, update_every)
+    config = config_for(
+        args.task,
+        args.dynamics,
+        backend,
+        n_seeds,
+        args.buffer_size,
+        update_every,
+        args.device_solver,
+    )
     learner = make_learner(config)
     learner.fresh()
     step = 0
@@ -81,7 +103,8 @@ def measure(args, backend: str, n_seeds: int) -> str:
     rate = n_seeds * (step - first) / run_s
     platform = jax.devices()[0].platform
     return (
-        f"{args.task},{args.dynamics},{backend},{platform},{n_seeds},{update_every},{compile_s:.1f},{chunk_s:.4f},"
+        f"{args.task},{args.dynamics},{solver_column(args.device_solver, backend)},"
+        f"{backend},{platform},{n_seeds},{update_every},{compile_s:.1f},{chunk_s:.4f},"
         f"{rate:.1f},{1e3 * chunk_s / update_every:.3f},{memory_mb():.0f}"
     )
 
@@ -100,6 +123,7 @@ def main(argv=None) -> int:
     parser.add_argument("--host", action="store_true", help="the host backend, one lane per seed")
     parser.add_argument("--task", default="hopper", choices=["hopper", "walker2d"])
     parser.add_argument("--dynamics", default="nominal")
+    parser.add_argument("--device-solver", default="xml", help="xml, or ITERATIONS,LS_ITERATIONS")
     parser.add_argument("--chunks", type=int, default=20)
     parser.add_argument("--update-every", type=int, default=50)
     parser.add_argument("--buffer-size", type=int, default=100_000)
@@ -110,7 +134,8 @@ def main(argv=None) -> int:
         try:
             line = measure(args, backend, n)
         except Exception as exc:  # one seed count failing (memory) must not lose the others
-            line = f"{args.task},{args.dynamics},{backend},failed,{n},{args.update_every},,,,,{type(exc).__name__}"
+            solver = solver_column(args.device_solver, backend)
+            line = f"{args.task},{args.dynamics},{solver},{backend},failed,{n},{args.update_every},,,,,{type(exc).__name__}"
         emit(line, args.csv)
     return 0
 

@@ -143,8 +143,9 @@ def test_recheck_welch_power_agrees_with_adarls(monkeypatch, n_x, n_y):
 @pytest.mark.slow
 def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
     """bench/accelerator.sh, the prepared GPU check of issue 36, on this machine's CPU: the host
-    line, one device line (2 seeds, one timed chunk), one Walker2d line under the paper's
-    per-episode physics (1 seed); the raw-physics part left out."""
+    line, one device line (Hopper, 2 seeds, one timed chunk), one Walker2d line under the
+    paper's per-episode physics with the solver's line search capped (1 seed); the raw-physics
+    part left out."""
     import os
 
     pytest.importorskip("mujoco.mjx")
@@ -153,8 +154,7 @@ def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
         "PYTHON": sys.executable,
         "JAX_PLATFORMS": "cpu",
         "OUT": str(tmp_path),
-        "LEARNER_SEEDS": "2",
-        "PAPER_SEEDS": "1",
+        "LEARNER_RUNS": "hopper:nominal:2:xml walker2d:paper:1:100,4",
         "CHUNKS": "1",
         "BUFFER": "1000",
         "PHYSICS": "",
@@ -165,12 +165,12 @@ def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
     )
     assert done.returncode == 0, done.stderr[-2000:]
     rows = (tmp_path / "accelerator-learner.csv").read_text().splitlines()
-    assert rows[0].startswith("task,dynamics,backend,platform,seeds")
+    assert rows[0].startswith("task,dynamics,solver,backend,platform,seeds")
     host, device, paper = (row.split(",") for row in rows[1:])
-    assert host[:5] == ["hopper", "nominal", "host", "cpu", "1"]
-    assert device[:5] == ["hopper", "nominal", "device", "cpu", "2"]
-    assert paper[:5] == ["walker2d", "paper", "device", "cpu", "1"]
-    assert all(float(row[8]) > 0 for row in (host, device, paper))  # seed-steps/s
+    assert host[:6] == ["hopper", "nominal", "", "host", "cpu", "1"]
+    assert device[:6] == ["hopper", "nominal", "xml", "device", "cpu", "2"]
+    assert paper[:6] == ["walker2d", "paper", "100/4", "device", "cpu", "1"]
+    assert all(float(row[9]) > 0 for row in (host, device, paper))  # seed-steps/s
 
 
 def test_device_parity_compares_the_final_evaluations(tmp_path):

@@ -155,7 +155,7 @@ ALGORITHMS: dict[str, Algorithm] = {
 ALGOS: tuple[str, ...] = tuple(ALGORITHMS)
 # fields added to the configs after run folders had been written without them, with the value
 # those runs had: a config.yaml that lacks one keeps that value on resume (`runs.folder`)
-ADDED_FIELDS = {"backend": "host"}
+ADDED_FIELDS = {"backend": "host", "device_solver": "xml"}
 
 
 def get(name: str) -> Algorithm:

@@ -59,6 +59,10 @@ class SACConfig(RunConfig):
     # vmapped into one jitted scan (a seed's numbers then depend on the seeds beside it;
     # docs/algorithms.md, "The device backend")
     backend: str = "host"
+    # the device task's constraint solver: "xml" (the task XML's, the physics of docs/envs.md) or
+    # "ITERATIONS,LS_ITERATIONS" capped for speed on a GPU (e.g. 1,4, as MuJoCo Playground's MJX
+    # models; a different physics: runs with different solvers never share a report)
+    device_solver: str = "xml"
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics
     activation: str = "relu"  # hidden-layer activation
@@ -124,6 +128,11 @@ class SACConfig(RunConfig):
         check_choice("backend", self.backend, BACKENDS)
         if self.backend == "device":
             self.check_device()
+        elif self.device_solver != "xml":
+            raise UsageError(
+                f"device-solver applies to --backend device, got --device-solver "
+                f"{self.device_solver} with --backend {self.backend}"
+            )
         if self.retain_tolerance is not None and not (
             math.isfinite(self.retain_tolerance) and self.retain_tolerance > 0
         ):
@@ -209,6 +218,9 @@ class SACConfig(RunConfig):
             check_choice("physics for --backend device", self.physics, ("consistent",))
         check_choice("model version for --backend device", self.model_version, ("v5",))
         check_choice("algo for --backend device", self.algo, DEVICE_ALGOS)
+        from adarl.device.tasks import solver_caps
+
+        solver_caps(self.device_solver)
 
 
 PRESETS: dict[str, dict] = {

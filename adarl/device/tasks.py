@@ -3,6 +3,7 @@
 
     from adarl.device.tasks import make
     task = make("walker2d", dtype=jnp.float64)       # Gymnasium's XML; or mj_model=...
+    task = make("hopper", solver=solver_caps("1,4"))  # the solver capped (a different physics)
     state = task.reset(key, fields)                  # fields: adarl.device.physics per episode
     state, obs, reward, terminated, truncated = task.step(state, action)
 """
@@ -10,8 +11,14 @@
 from __future__ import annotations
 
 from adarl.device import ant, hopper, humanoid, walker2d
-from adarl.device.common import DeviceTask, Rules
-from adarl.errors import check_choice
+from adarl.device.common import DeviceTask, Rules, gymnasium_model
+from adarl.errors import UsageError, check_choice
+
+#: The device solver as the task's XML sets it (`--device-solver xml`), else "ITERATIONS,LS":
+#: MJX's own test models and MuJoCo Playground's locomotion XMLs cap the Newton solver at 1
+#: iteration and 4-5 line-search iterations for speed on a GPU, where each solver iteration is a
+#: loop trip (docs/benchmarks.md, the H200 run); the physics then differs from MuJoCo C's.
+XML_SOLVER = "xml"
 
 RULES: dict[str, Rules] = {
     r.name: r for r in (hopper.RULES, walker2d.RULES, ant.RULES, humanoid.RULES)
@@ -37,8 +44,29 @@ DIFFERENCES: dict[str, str] = {
 }
 
 
-def make(name: str, mj_model=None, dtype=None) -> DeviceTask:
+def solver_caps(value: str) -> tuple[int, int] | None:
+    """`--device-solver`: None for "xml" (the task XML's solver), else (iterations,
+    line-search iterations) from "I,L", each an integer ≥ 1 (one-line UsageError otherwise)."""
+    if value == XML_SOLVER:
+        return None
+    parts = value.split(",")
+    if len(parts) == 2 and all(p.strip().isdigit() and int(p) >= 1 for p in parts):
+        return int(parts[0]), int(parts[1])
+    raise UsageError(
+        f"device-solver must be 'xml' or 'ITERATIONS,LS_ITERATIONS' (integers >= 1, e.g. 1,4), "
+        f"got {value!r}"
+    )
+
+
+def make(name: str, mj_model=None, dtype=None, solver: tuple[int, int] | None = None) -> DeviceTask:
     """The device task `name` on `mj_model` (Gymnasium's XML when omitted) in `dtype` (float32
-    unless given; float64 needs ``jax_enable_x64``)."""
+    unless given; float64 needs ``jax_enable_x64``), its solver capped at `solver` (iterations,
+    line-search iterations) where given, on a copy of the model."""
+    import copy
+
     check_choice("device task", name, RULES)
-    return DeviceTask(RULES[name], mj_model, dtype)
+    rules = RULES[name]
+    if solver is not None:
+        mj_model = copy.copy(gymnasium_model(rules.xml) if mj_model is None else mj_model)
+        mj_model.opt.iterations, mj_model.opt.ls_iterations = solver
+    return DeviceTask(rules, mj_model, dtype)

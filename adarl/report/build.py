@@ -221,13 +221,15 @@ def usable_runs(runs: list[Run], skip_incomplete: bool) -> tuple[list[Run], list
 def check_rows(runs: Sequence[Run]) -> None:
     """One table row is one task trained one way: runs of the same task must share the
     training dynamics, or the row would compare methods on different problems; and one report
-    holds one physics backend (MuJoCo C and MJX differ, docs/envs.md), whatever the task."""
+    holds one physics (MuJoCo C, MJX, MJX with a capped solver differ: docs/envs.md), whatever
+    the task."""
     backends = {run.backend: run for run in runs}
     if len(backends) > 1:
         (a, first), (b, other) = sorted(backends.items())[:2]
         raise UsageError(
             f"runs {first.path} (backend {a}) and {other.path} (backend {b}) ran on different "
-            "physics (MuJoCo C and MJX); report them separately"
+            "physics (host: MuJoCo C; device: MJX, with the XML's solver or a capped one); "
+            "report them separately"
         )
     seen: dict[str, Run] = {}
     for run in runs:

@@ -59,9 +59,12 @@ class Run:
 
     @property
     def backend(self) -> str:
-        """The physics backend it trained on: `host` (MuJoCo C) or `device` (MJX); runs written
-        before the field existed trained on the host."""
-        return str(config_value(self.config, "backend", "host"))
+        """The physics backend it trained on: `host` (MuJoCo C) or `device` (MJX), the latter
+        with its solver where capped (`device, solver 1,4`); runs written before the fields
+        existed trained on the host, and on the device with the XML's solver."""
+        backend = str(config_value(self.config, "backend", "host"))
+        solver = str(config_value(self.config, "device_solver", "xml"))
+        return backend if solver == "xml" else f"{backend}, solver {solver}"
 
     @property
     def seeds(self) -> list[int]:

@@ -133,16 +133,17 @@ def schedule_table(name: str, dynamics: str):
 
 
 @functools.cache
-def device_task(name: str, dynamics: str):
+def device_task(name: str, dynamics: str, solver: str = "xml"):
     """The device task `name` on the model of `dynamics` (Gymnasium's own for `default`, else
     the schedule's centroid, which is its one model for `nominal` and `fixed:…` and the base
-    whose leaves per-episode rows replace for the others); one object per process, so compiled
-    functions are shared."""
+    whose leaves per-episode rows replace for the others), with `solver` (`--device-solver`);
+    one object per process, so compiled functions are shared."""
     from adarl.device import tasks
 
+    caps = tasks.solver_caps(solver)
     if dynamics == "default":
-        return tasks.make(name)
-    return tasks.make(name, mj_model=schedule_table(name, dynamics).mj_model)
+        return tasks.make(name, solver=caps)
+    return tasks.make(name, mj_model=schedule_table(name, dynamics).mj_model, solver=caps)
 
 
 def compile_functions(spec: sac.Spec) -> Compiled:
@@ -150,7 +151,7 @@ def compile_functions(spec: sac.Spec) -> Compiled:
     time (each compile of a device chunk takes tens of seconds on a CPU)."""
     fns = _COMPILED.get(spec)
     if fns is None:
-        task = device_task(spec.config.task, spec.config.dynamics)
+        task = device_task(spec.config.task, spec.config.dynamics, spec.config.device_solver)
         vmap = jax.vmap
 
         def chunk(n_steps, state, env, table, step, update):
@@ -182,7 +183,7 @@ class DeviceSACLearner:
         self.seeds = list(config.seeds)
         self.n = len(self.seeds)
         self.env_options = config.env_options()
-        task = device_task(config.task, config.dynamics)
+        task = device_task(config.task, config.dynamics, config.device_solver)
         # SeedPhysics or PhysicsRing: fields, episode_params, fill
         self.physics = seed_physics(config, task) if physics is None else physics
         self.envs = [EnvView(self.physics.episode_params(i, 0)) for i in range(self.n)]

@@ -33,7 +33,7 @@ RESOLVED = json.loads((Path(__file__).parents[1] / "data" / "resolved-configs.js
 # fields added since, with the value every config had before them
 ADDED = {
     "RNACConfig": {"algo": "rnac", "max_episode_steps": 1000},
-    "SACConfig": {"backend": "host"},
+    "SACConfig": {"backend": "host", "device_solver": "xml"},
 }
 # fields retired since (registry.Algorithm.retired_fields), with the value every config had
 RETIRED = {"SACConfig": {"lanes": 0}}

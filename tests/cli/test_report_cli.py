@@ -239,7 +239,12 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, sweep, capsys):
     # one report, one physics backend: a device run (MJX) beside host runs, even on another task
     device = write_run(tmp_path / "runs3", "dev", task="walker2d", extra_config={"backend": "device"})  # fmt: skip
     _fails(["report", str(sweep / "hopper" / "adarl"), str(device), "--out", str(out)], capsys,
-           "ran on different physics (MuJoCo C and MJX)")  # fmt: skip
+           "(backend device) and")  # fmt: skip
+    # nor two device runs, one with the XML's solver and one capped (a different physics)
+    capped = write_run(tmp_path / "runs4", "cap", task="walker2d",
+                       extra_config={"backend": "device", "device_solver": "1,4"})  # fmt: skip
+    _fails(["report", str(device), str(capped), "--out", str(out)], capsys,
+           "(backend device) and " + str(capped) + " (backend device, solver 1,4) ran on different physics")  # fmt: skip
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "notes.txt").write_text("mine")
     _fails(["report", str(sweep), "--out", str(tmp_path / "busy")], capsys, "not an adarl report")

@@ -58,6 +58,16 @@ from adarl.cli.train import add_arguments, build_config
             ["--backend", "device", "--dynamics", "uniform", "--model-version", "v4"],
             "unknown model version for --backend device 'v4'; allowed: v5",
         ),
+        (
+            ["--backend", "device", "--device-solver", "0,4"],
+            "device-solver must be 'xml' or 'ITERATIONS,LS_ITERATIONS' (integers >= 1, e.g. 1,4), "
+            "got '0,4'",
+        ),
+        (
+            ["--device-solver", "100,4"],
+            "device-solver applies to --backend device, got --device-solver 100,4 with --backend "
+            "host",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_creates_nothing(argv, needle, tmp_path, capsys):

@@ -157,8 +157,9 @@ class Setup:
     episodes: list
 
 
-def setup(task_name: str, seed: int = 0) -> Setup:
-    """Build `Setup` for `task_name` (call inside ``jax.enable_x64(True)``)."""
+def setup(task_name: str, seed: int = 0, solver: tuple[int, int] | None = None) -> Setup:
+    """Build `Setup` for `task_name` (call inside ``jax.enable_x64(True)``), the device task's
+    solver capped at `solver` where given (the host's stays the XML's)."""
     import jax.numpy as jnp
 
     from adarl.device.physics import physics_table, stack
@@ -168,6 +169,6 @@ def setup(task_name: str, seed: int = 0) -> Setup:
     episodes = perturbed_episodes(table.schedule)
     params = [table.schedule.centroid()] + [table.params(i) for i in episodes]
     fields = stack([table.fields_at(p) for p in params])
-    lanes = Lanes(make(task_name, table.mj_model, jnp.float64))
+    lanes = Lanes(make(task_name, table.mj_model, jnp.float64, solver=solver))
     envs = host_envs(task_name, [("nominal", 0)] + [("paper", i) for i in episodes], seed)
     return Setup(lanes, fields, envs, episodes)
