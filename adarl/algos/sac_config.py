@@ -30,11 +30,12 @@ SAC_FAMILY: dict[str, dict] = {
 }
 
 BACKENDS = ("host", "device")
-# what the device backend (adarl.train.device_learner) trains so far: Hopper-v5 and Walker2d-v5
-# under every dynamics schedule (Gymnasium's own `default`; a schedule's models, compiled as the
+# what the device backend (adarl.train.device_learner) trains: the four tasks' v5 models (Ant's
+# and Humanoid's physics differ from MuJoCo C's, docs/envs.md "Device physics") under every
+# dynamics schedule (Gymnasium's own `default`; a schedule's models, compiled as the
 # host's `consistent` physics compiles them, per episode for `paper`, `ompo`, `uniform`), every
 # algorithm whose networks are plain or bottleneck layers
-DEVICE_TASKS = ("hopper", "walker2d")
+DEVICE_TASKS = ("hopper", "walker2d", "ant", "humanoid")
 DEVICE_DYNAMICS = ("default", "nominal", "fixed", "paper", "ompo", "uniform")
 DEVICE_ALGOS = ("sac", "adarl", "adarl-control", "sac-fixed-rank", "sac-parseval")
 
@@ -209,7 +210,7 @@ class SACConfig(RunConfig):
         return self
 
     def check_device(self) -> None:
-        """What the device backend trains so far (one-line UsageError otherwise)."""
+        """What the device backend trains (one-line UsageError otherwise)."""
         check_choice("task for --backend device", self.task, DEVICE_TASKS)
         check_choice(
             "dynamics for --backend device", self.dynamics.partition(":")[0], DEVICE_DYNAMICS

@@ -65,8 +65,8 @@ def test_update_and_action_keys_are_separate_streams():
     [
         ({"backend": "gpu"}, "unknown backend 'gpu'; allowed: host, device"),
         (
-            {"backend": "device", "task": "ant", "dynamics": "default"},
-            "unknown task for --backend device 'ant'; allowed: hopper, walker2d",
+            {"backend": "device", "task": "ant", "device_solver": "fast"},
+            "device-solver must be 'xml' or 'ITERATIONS,LS_ITERATIONS'",
         ),
         (
             {"backend": "device", "dynamics": "uniform", "model_version": "v4"},

@@ -47,10 +47,6 @@ from adarl.cli.train import add_arguments, build_config
         (["--retain-samples", "0"], "retain-samples must be > 0"),
         (["--backend", "gpu"], "unknown backend 'gpu'; allowed: host, device"),
         (
-            ["--backend", "device", "--task", "ant", "--dynamics", "default"],
-            "unknown task for --backend device 'ant'; allowed: hopper, walker2d",
-        ),
-        (
             ["--backend", "device", "--physics", "ompo"],
             "unknown physics for --backend device 'ompo'; allowed: consistent",
         ),

@@ -146,6 +146,19 @@ def test_walker2d_under_uniform_draws_each_seeds_own_models_as_the_host_env_does
     assert host[0].episode(3)[1] != host[1].episode(3)[1]
 
 
+@pytest.mark.parametrize("task", ["ant", "humanoid"])
+def test_ant_and_humanoid_under_paper_run_the_host_envs_gravity_and_wind(task):
+    """Ant and Humanoid, `paper` (gravity and wind per episode, the only fields that change):
+    every episode runs the host env's compiled model's fields, and reports its parameters."""
+    from adarl.train.device_learner import DeviceSACLearner
+
+    budget = BUDGET | {"task": task, "total_steps": 100, "start_steps": 100, "update_after": 100}
+    learner = DeviceSACLearner(registry.resolve_config("sac", "smoke", budget))
+    assert sorted(learner.physics.table.shapes) == ["opt.gravity", "opt.wind"]
+    host = [HostEpisodes(task, "paper", s) for s in budget["seeds"]]
+    check_every_episode_runs_the_host_model(learner, host, 100)
+
+
 def test_episodes_csv_records_the_host_envs_parameters(full_run, host):
     rows = read_csv(full_run / "episodes.csv")
     assert len(rows) > 2 * 80
