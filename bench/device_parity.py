@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import csv
 import shutil
+import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -38,20 +39,33 @@ def final_scores(run: Path) -> tuple[dict[int, float], int]:
     return {s: float(np.mean(by_step[last])) for s, by_step in sorted(returns.items())}, last
 
 
+def fail(message: str) -> int:
+    """A one-line error on stderr; exit status 2, as adarl's commands."""
+    print(f"device_parity.py: error: {message}", file=sys.stderr)
+    return 2
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("host", type=Path)
     parser.add_argument("device", type=Path)
     parser.add_argument("--copy", type=Path, default=None)
     args = parser.parse_args(argv)
+    for side, run in (("host", args.host), ("device", args.device)):
+        if not (run / "eval.csv").is_file():
+            return fail(f"{side} run {run} has no eval.csv; give two run folders of adarl train")
+    host, step = final_scores(args.host)
+    device, device_step = final_scores(args.device)
+    if step != device_step:
+        return fail(
+            f"the runs' last evaluations differ (host at step {step:,}, device at "
+            f"{device_step:,}); give runs of the same budget"
+        )
     if args.copy:
         for side, run in (("host", args.host), ("device", args.device)):
             (args.copy / side).mkdir(parents=True, exist_ok=True)
             for name in ("eval.csv", "config.yaml"):
                 shutil.copyfile(run / name, args.copy / side / name)
-    host, step = final_scores(args.host)
-    device, device_step = final_scores(args.device)
-    assert step == device_step, (step, device_step)
     x = np.array(list(device.values()))
     y = np.array(list(host.values()))
     ci = stats.welch_difference_ci(x, y)

@@ -200,3 +200,24 @@ def test_device_parity_compares_the_final_evaluations(tmp_path):
     assert (tmp_path / "c" / "device" / "eval.csv").read_bytes() == (
         device / "eval.csv"
     ).read_bytes()
+
+
+def test_device_parity_refuses_a_folder_without_runs_in_one_line(tmp_path):
+    """A missing run folder, or runs of different budgets: one line on stderr, exit 2."""
+    from synthetic_runs import write_run
+
+    host = write_run(tmp_path, "host", algo="sac", quality=1.0)
+    short = write_run(tmp_path, "short", algo="sac", quality=1.0, total_steps=1000)
+    cases = [
+        ((str(tmp_path / "nothing"), str(host)), "host run "),
+        ((str(host), str(short)), "the runs' last evaluations differ"),
+    ]
+    for argv, words in cases:
+        done = subprocess.run(
+            [sys.executable, "bench/device_parity.py", *argv],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        )
+        assert done.returncode == 2 and done.stdout == "", done
+        assert done.stderr.count("\n") == 1 and words in done.stderr, done.stderr
