@@ -3,11 +3,12 @@ vmapped batch, against MuJoCo C on one thread.
 
     python bench/accelerator.py --task hopper --platform gpu --batch 1 1024 8192 --steps 1000
     python bench/accelerator.py --task hopper --mujoco-c --steps 20000
-    python bench/accelerator.py --task hopper --iterations 1 --ls-iterations 4 --batch 1024
+    python bench/accelerator.py --task hopper --device-solver 100,4 --batch 1024
 
-``--iterations``/``--ls-iterations`` cap the constraint solver (the XML's are 100/50, Humanoid's
-50/50; MJX's own test models and MuJoCo Playground's locomotion XMLs use 1 and 4-5 for speed on a
-GPU): a different physics, measured here for its speed only; the kind column says which.
+``--device-solver ITERATIONS,LS`` caps the constraint solver as `adarl train --device-solver`
+does (the XMLs' are 100,50, Humanoid's 50,50): `100,4` matched MuJoCo C as the XML's does, `1,4`
+(MuJoCo Playground's MJX models) is a different physics (docs/envs.md, "Device physics"); the
+kind column says which (`mjx`, `mjx-100/4`).
 
 Prints one CSV line per measurement (``task,kind,platform,batch,steps,compile_s,run_s,env_steps_per_s``)
 and appends it to ``--csv``. Random actions in [-1, 1], one jitted `lax.scan` of ``--steps`` env
@@ -56,12 +57,9 @@ def device_rate(
 
     from adarl.device.tasks import make
 
-    mj_model = load_model(name)
-    if solver:
-        mj_model.opt.iterations, mj_model.opt.ls_iterations = solver
     device = jax.devices(platform)[0]
     with jax.default_device(device):
-        task = make(name, mj_model=mj_model, dtype=jnp.float32)
+        task = make(name, dtype=jnp.float32, solver=solver)
 
         @jax.jit
         def rollout(key):
@@ -111,8 +109,7 @@ def main(argv=None) -> None:
     parser.add_argument("--batch", type=int, nargs="+", default=[1])
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--mujoco-c", action="store_true", help="time MuJoCo C instead")
-    parser.add_argument("--iterations", type=int, default=None, help="the solver's, capped")
-    parser.add_argument("--ls-iterations", type=int, default=None, help="its line search's")
+    parser.add_argument("--device-solver", default="xml", help="xml, or ITERATIONS,LS_ITERATIONS")
     parser.add_argument("--csv", default=None)
     args = parser.parse_args(argv)
     if args.mujoco_c:
@@ -120,15 +117,10 @@ def main(argv=None) -> None:
         line = f"{args.task},mujoco_c,cpu,1,{args.steps},0,{run_s:.3f},{args.steps / run_s:.1f}"
         emit(line, args.csv)
         return
-    solver = None
-    kind = "mjx"
-    if args.iterations or args.ls_iterations:
-        model = load_model(args.task)
-        solver = (
-            args.iterations or model.opt.iterations,
-            args.ls_iterations or model.opt.ls_iterations,
-        )
-        kind = f"mjx-iter{solver[0]}-ls{solver[1]}"
+    from adarl.device.tasks import solver_caps
+
+    solver = solver_caps(args.device_solver)
+    kind = "mjx" if solver is None else "mjx-" + args.device_solver.replace(",", "/")
     for batch in args.batch:
         compile_s, run_s = device_rate(args.task, args.platform, batch, args.steps, solver)
         rate = batch * args.steps / run_s

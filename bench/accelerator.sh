@@ -9,7 +9,7 @@
 # Python 3.12 and JAX but no MuJoCo), put their wheels in .whl/ first (docs/benchmarks.md,
 # "Accelerator groundwork": the list and the pip download command) and carry it.
 # Env: OUT (results folder, default .), WHEELS, PYTHON, LEARNER_RUNS, CHUNKS, BUFFER,
-# PHYSICS (task:batch,batch,... entries; empty: no raw physics), SOLVERS (ITERATIONS,LS entries
+# PHYSICS (task:batch,batch,... entries; empty: no raw physics), SOLVERS (--device-solver values
 # beside the XML's), STEPS, PLATFORM (default gpu), LIMIT (seconds per measurement).
 # Each measurement's stderr goes to $OUT/accelerator.err. Sized from the H200 run of 2026-12-04
 # (docs/benchmarks.md): a device measurement compiled for ~45-60 s and a Hopper chunk took
@@ -72,7 +72,7 @@ if [ -n "$PHYSICS" ]; then
       --steps "$STEPS" --csv "$CSV"
     for solver in $SOLVERS; do
       run bench/accelerator.py --task "$task" --platform "$PLATFORM" --batch ${batches//,/ } \
-        --steps "$STEPS" --csv "$CSV" --iterations "${solver%,*}" --ls-iterations "${solver#*,}"
+        --steps "$STEPS" --csv "$CSV" --device-solver "$solver"
     done
   done
 fi

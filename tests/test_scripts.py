@@ -144,8 +144,8 @@ def test_recheck_welch_power_agrees_with_adarls(monkeypatch, n_x, n_y):
 def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
     """bench/accelerator.sh, the prepared GPU check of issue 36, on this machine's CPU: the host
     line, one device line (Hopper, 2 seeds, one timed chunk), one Walker2d line under the
-    paper's per-episode physics with the solver's line search capped (1 seed); the raw-physics
-    part left out."""
+    paper's per-episode physics with the solver's line search capped (1 seed); raw physics:
+    MuJoCo C and MJX Hopper on 2 lanes, with the XML's solver and capped."""
     import os
 
     pytest.importorskip("mujoco.mjx")
@@ -157,7 +157,10 @@ def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
         "LEARNER_RUNS": "hopper:nominal:2:xml walker2d:paper:1:100,4",
         "CHUNKS": "1",
         "BUFFER": "1000",
-        "PHYSICS": "",
+        "PHYSICS": "hopper:2",
+        "PLATFORM": "cpu",
+        "SOLVERS": "100,4",
+        "STEPS": "2",
         "LIMIT": "600",
     }
     done = subprocess.run(
@@ -171,6 +174,14 @@ def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
     assert device[:6] == ["hopper", "nominal", "xml", "device", "cpu", "2"]
     assert paper[:6] == ["walker2d", "paper", "100/4", "device", "cpu", "1"]
     assert all(float(row[9]) > 0 for row in (host, device, paper))  # seed-steps/s
+    physics = [row.split(",") for row in (tmp_path / "accelerator.csv").read_text().splitlines()]
+    assert physics[0][:2] == ["task", "kind"]
+    assert [row[:4] for row in physics[1:]] == [
+        ["hopper", "mujoco_c", "cpu", "1"],
+        ["hopper", "mjx", "cpu", "2"],
+        ["hopper", "mjx-100/4", "cpu", "2"],
+    ]
+    assert all(float(row[7]) > 0 for row in physics[1:])  # env-steps/s
 
 
 def test_device_parity_compares_the_final_evaluations(tmp_path):

@@ -61,8 +61,9 @@ class SACConfig(RunConfig):
     # docs/algorithms.md, "The device backend")
     backend: str = "host"
     # the device task's constraint solver: "xml" (the task XML's, the physics of docs/envs.md) or
-    # "ITERATIONS,LS_ITERATIONS" capped for speed on a GPU (e.g. 1,4, as MuJoCo Playground's MJX
-    # models; a different physics: runs with different solvers never share a report)
+    # "ITERATIONS,LS_ITERATIONS" capped for speed (100,4 matched MuJoCo C as xml does; 1,4, as
+    # MuJoCo Playground's MJX models, is a different physics); runs of different solvers never
+    # share a report
     device_solver: str = "xml"
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics

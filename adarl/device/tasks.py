@@ -14,10 +14,10 @@ from adarl.device import ant, hopper, humanoid, walker2d
 from adarl.device.common import DeviceTask, Rules, gymnasium_model
 from adarl.errors import UsageError, check_choice
 
-#: The device solver as the task's XML sets it (`--device-solver xml`), else "ITERATIONS,LS":
-#: MJX's own test models and MuJoCo Playground's locomotion XMLs cap the Newton solver at 1
-#: iteration and 4-5 line-search iterations for speed on a GPU, where each solver iteration is a
-#: loop trip (docs/benchmarks.md, the H200 run); the physics then differs from MuJoCo C's.
+#: The device solver as the task's XML sets it (`--device-solver xml`), else "ITERATIONS,LS"
+#: capped: MJX's line search is a scan whose trips, vmapped, all run, so `100,4` ran 4.6 times
+#: faster on a CPU and matched MuJoCo C as `xml` does; `1,4` (MuJoCo Playground's MJX models) is
+#: a different physics (docs/envs.md, "Device physics").
 XML_SOLVER = "xml"
 
 RULES: dict[str, Rules] = {
