@@ -15,8 +15,9 @@ to compile and fill one chunk, then times `--chunks` more advances (each at leas
 
     task,dynamics,solver,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb
 
-`solver`: the device's `--device-solver` (`xml`, or `100/4` for 100,4). `update_ms`: a chunk's time over its `update_every` gradient steps (the env steps included: an
-upper bound on one update). `memory_mb`: the device's peak bytes in use where JAX reports them
+`solver`: the device's `--device-solver` (`xml`, or `100/4` for 100,4). `update_ms`: a chunk's
+time over its `update_every` gradient steps (the env steps included: an upper bound on one
+update). `memory_mb`: the device's peak bytes in use where JAX reports them
 (GPU), else the process's peak resident set. A seed count that does not fit (memory, time) prints
 a `failed` line and the next one runs.
 """
@@ -121,7 +122,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--host", action="store_true", help="the host backend, one lane per seed")
-    parser.add_argument("--task", default="hopper", choices=["hopper", "walker2d"])
+    parser.add_argument(
+        "--task", default="hopper", choices=["hopper", "walker2d", "ant", "humanoid"]
+    )
     parser.add_argument("--dynamics", default="nominal")
     parser.add_argument("--device-solver", default="xml", help="xml, or ITERATIONS,LS_ITERATIONS")
     parser.add_argument("--chunks", type=int, default=20)
@@ -135,7 +138,10 @@ def main(argv=None) -> int:
             line = measure(args, backend, n)
         except Exception as exc:  # one seed count failing (memory) must not lose the others
             solver = solver_column(args.device_solver, backend)
-            line = f"{args.task},{args.dynamics},{solver},{backend},failed,{n},{args.update_every},,,,,{type(exc).__name__}"
+            line = (
+                f"{args.task},{args.dynamics},{solver},{backend},failed,{n},{args.update_every},"
+                f",,,,{type(exc).__name__}"
+            )
         emit(line, args.csv)
     return 0
 
