@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 
 HEADER = "task,kind,platform,batch,steps,compile_s,run_s,env_steps_per_s"
@@ -37,6 +38,12 @@ def load_model(task: str):
     from adarl.device.common import gymnasium_model
 
     return gymnasium_model(rules_of(task).xml)
+
+
+def progress(message: str) -> None:
+    """A line on stderr as the measurement goes, so that one stopped by its time limit still
+    tells how far it got (bench/accelerator.sh keeps them in accelerator.err)."""
+    print(f"# {message}", file=sys.stderr, flush=True)
 
 
 def emit(line: str, csv: str | None) -> None:
@@ -80,7 +87,10 @@ def device_rate(
         start = time.perf_counter()
         compiled = rollout.lower(jax.random.key(0)).compile()
         compile_s = time.perf_counter() - start
+        progress(f"{name} B={batch}: compiled in {compile_s:.1f} s")
+        start = time.perf_counter()
         compiled(jax.random.key(1)).block_until_ready()  # warm-up
+        progress(f"{name} B={batch}: warm-up run in {time.perf_counter() - start:.3f} s")
         start = time.perf_counter()
         compiled(jax.random.key(2)).block_until_ready()
         return compile_s, time.perf_counter() - start

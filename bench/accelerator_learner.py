@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import sys
 import time
 
 HEADER = "task,dynamics,solver,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb"
@@ -59,6 +60,12 @@ def config_for(
     return registry.resolve_config("adarl", None, flags)
 
 
+def progress(message: str) -> None:
+    """A line on stderr as the measurement goes (bench/accelerator.sh keeps them in
+    accelerator.err), so that one stopped by its time limit still tells how far it got."""
+    print(f"# {message}", file=sys.stderr, flush=True)
+
+
 def solver_column(solver: str, backend: str) -> str:
     """The solver as the CSV shows it: empty for the host, `100/4` for `--device-solver 100,4`."""
     return solver.replace(",", "/") if backend == "device" else ""
@@ -88,16 +95,23 @@ def measure(args, backend: str, n_seeds: int) -> str:
         update_every,
         args.device_solver,
     )
+    begin = time.perf_counter()
     learner = make_learner(config)
     learner.fresh()
+    progress(f"{n_seeds} seeds: built in {time.perf_counter() - begin:.1f} s")
     step = 0
     start = time.perf_counter()
     step = learner.advance(step).step  # compiles, fills the first chunk
     jax.block_until_ready(getattr(learner, "state", None))
     compile_s = time.perf_counter() - start
+    progress(f"{n_seeds} seeds: compiled and ran the first chunk in {compile_s:.1f} s")
     start, first = time.perf_counter(), step
-    for _ in range(chunks):  # an advance may cover several chunks (up to the loop's next event)
-        step = learner.advance(step).step
+    for k in range(chunks):  # an advance may cover several chunks (up to the loop's next event)
+        before = time.perf_counter()
+        step = learner.advance(step).step  # returns the chunk's episodes: the host has waited
+        progress(
+            f"{n_seeds} seeds: advance {k + 1} to step {step} in {time.perf_counter() - before:.3f} s"
+        )
     jax.block_until_ready(getattr(learner, "state", None))
     run_s = time.perf_counter() - start
     chunk_s = run_s * update_every / (step - first)
