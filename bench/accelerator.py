@@ -110,7 +110,7 @@ def mujoco_c_rate(name: str, steps: int) -> float:
     return time.perf_counter() - start
 
 
-def main(argv=None) -> None:
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--task", default="hopper", choices=["hopper", "walker2d", "ant", "humanoid"]
@@ -122,21 +122,27 @@ def main(argv=None) -> None:
     parser.add_argument("--device-solver", default="xml", help="xml, or ITERATIONS,LS_ITERATIONS")
     parser.add_argument("--csv", default=None)
     args = parser.parse_args(argv)
+    from adarl.device.tasks import solver_caps
+    from adarl.errors import UsageError
+
+    try:
+        solver = solver_caps(args.device_solver)
+    except UsageError as exc:
+        print(f"accelerator.py: error: {exc}", file=sys.stderr)
+        return 2
     if args.mujoco_c:
         run_s = mujoco_c_rate(args.task, args.steps)
         line = f"{args.task},mujoco_c,cpu,1,{args.steps},0,{run_s:.3f},{args.steps / run_s:.1f}"
         emit(line, args.csv)
-        return
-    from adarl.device.tasks import solver_caps
-
-    solver = solver_caps(args.device_solver)
+        return 0
     kind = "mjx" if solver is None else "mjx-" + args.device_solver.replace(",", "/")
     for batch in args.batch:
         compile_s, run_s = device_rate(args.task, args.platform, batch, args.steps, solver)
         rate = batch * args.steps / run_s
         line = f"{args.task},{kind},{args.platform},{batch},{args.steps},{compile_s:.1f},{run_s:.3f},{rate:.1f}"
         emit(line, args.csv)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

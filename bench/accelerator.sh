@@ -17,6 +17,11 @@
 # about 8 minutes in all; other seed counts in a second call, e.g.
 #   LEARNER_RUNS="hopper:nominal:16:100,4 hopper:nominal:64:100,4 hopper:nominal:256:100,4" PHYSICS=""
 set -u
+case "${1:-}" in  # settings come from the environment (above); no arguments
+  "") ;;
+  -h|--help) sed -n '2,/^set /p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+  *) echo "$(basename "$0"): error: unknown argument '$1'; allowed: -h, --help (settings are environment variables)" >&2; exit 2 ;;
+esac
 OUT=${OUT:-.}
 LEARNER_RUNS=${LEARNER_RUNS-"hopper:nominal:1024:100,4 hopper:nominal:1024:xml \
 hopper:nominal:1:100,4 walker2d:paper:1024:100,4"}

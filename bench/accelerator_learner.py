@@ -146,6 +146,14 @@ def main(argv=None) -> int:
     parser.add_argument("--buffer-size", type=int, default=100_000)
     parser.add_argument("--csv", default=None)
     args = parser.parse_args(argv)
+    from adarl.device.tasks import solver_caps
+    from adarl.errors import UsageError
+
+    try:
+        solver_caps(args.device_solver)
+    except UsageError as exc:
+        print(f"accelerator_learner.py: error: {exc}", file=sys.stderr)
+        return 2
     backend = "host" if args.host else "device"
     for n in args.seeds:
         try:

@@ -3,6 +3,11 @@
 # the common packages; no MuJoCo), downloaded here into .whl/ (ignored: add /.whl/ to
 # .git/info/exclude), 22 MB; a `run` then names .whl in `carry` (docs/benchmarks.md).
 set -euo pipefail
+case "${1:-}" in  # no arguments
+  "") ;;
+  -h|--help) sed -n '2,/^set /p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+  *) echo "$(basename "$0"): error: unknown argument '$1'; allowed: -h, --help" >&2; exit 2 ;;
+esac
 cd "$(dirname "$0")/.."
 grep -qx '/.whl/' .git/info/exclude 2>/dev/null || echo '/.whl/' >> .git/info/exclude
 python3 -m pip download --quiet --no-deps --only-binary=:all: --python-version 3.12 \

@@ -232,3 +232,12 @@ def test_device_parity_refuses_a_folder_without_runs_in_one_line(tmp_path):
         )
         assert done.returncode == 2 and done.stdout == "", done
         assert done.stderr.count("\n") == 1 and words in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("script", ["bench/accelerator.sh", "bench/accelerator_wheels.sh"])
+def test_the_accelerator_scripts_have_help_and_refuse_arguments_in_one_line(script):
+    shown = subprocess.run(["bash", script, "--help"], cwd=ROOT, capture_output=True, text=True)
+    assert shown.returncode == 0 and "wheels" in shown.stdout and "set -" not in shown.stdout
+    done = subprocess.run(["bash", script, "--bogus"], cwd=ROOT, capture_output=True, text=True)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.count("\n") == 1 and "unknown argument '--bogus'" in done.stderr

@@ -35,13 +35,14 @@ import numpy as np
 from adarl.algos import replay, sac, sac_config, sac_device, schedule
 from adarl.errors import UsageError
 from adarl.runs import checkpoints, codec, layout
-from adarl.train.guards import check_device_memory, check_training_memory, nonfinite_seeds
+from adarl.train.guards import check_device_memory, check_training_memory
 from adarl.train.learner import Advance, Episode, Truncation, due
 from adarl.train.sac_learner import (
     BASE_COLUMNS,
     LEGACY_TRUNCATION_COLUMNS,
     TRUNCATION_COLUMNS,
     finite_parameters,
+    nonfinite_quantities,
     truncation_rows,
 )
 
@@ -368,14 +369,9 @@ class DeviceSACLearner:
     def nonfinite(self, step: int) -> dict[str, list[int]]:
         """Non-finite update metrics of the latest train.csv rows, parameters, optimiser states
         or returns, by quantity."""
-        found = {}
-        if self.metric_means is not None:
-            for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
-                found[key] = nonfinite_seeds(self.seeds, self.metric_means[key])
-        for name, ok in jax.device_get(finite_parameters(self.state)).items():
-            found[name] = [s for s, o in zip(self.seeds, ok) if not o]
-        found["episode return"] = nonfinite_seeds(self.seeds, jax.device_get(self.env["ep_return"]))
-        return {quantity: seeds for quantity, seeds in found.items() if seeds}
+        finite = jax.device_get(finite_parameters(self.state))
+        returns = jax.device_get(self.env["ep_return"])
+        return nonfinite_quantities(self.seeds, self.metric_means, finite, returns)
 
 
 def _take(tree, i: int):

@@ -452,14 +452,22 @@ class SACLearner:
     def nonfinite(self, step: int) -> dict[str, list[int]]:
         """Non-finite update metrics of the latest train.csv rows, parameters, optimiser states
         or returns, by quantity."""
-        found = {}
-        if self.metric_means is not None:
-            for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
-                found[key] = nonfinite_seeds(self.seeds, self.metric_means[key])
-        for name, ok in self.gather(lambda lane: finite_parameters(lane.state)).items():
-            found[name] = [s for s, o in zip(self.seeds, ok) if not o]
-        found["episode return"] = nonfinite_seeds(self.seeds, self.ep_return)
-        return {quantity: seeds for quantity, seeds in found.items() if seeds}
+        finite = self.gather(lambda lane: finite_parameters(lane.state))
+        return nonfinite_quantities(self.seeds, self.metric_means, finite, self.ep_return)
+
+
+def nonfinite_quantities(seeds, metric_means, finite: dict, returns) -> dict[str, list[int]]:
+    """`Learner.nonfinite` of the SAC family: the seeds whose update metrics (`metric_means`,
+    None before the first update), parameters and optimiser states (`finite`: name -> per-seed
+    flags) or episode `returns` are not finite, by quantity; shared by both backends."""
+    found = {}
+    if metric_means is not None:
+        for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
+            found[key] = nonfinite_seeds(seeds, metric_means[key])
+    for name, ok in finite.items():
+        found[name] = [s for s, o in zip(seeds, ok) if not o]
+    found["episode return"] = nonfinite_seeds(seeds, returns)
+    return {quantity: bad for quantity, bad in found.items() if bad}
 
 
 def truncation_rows(
