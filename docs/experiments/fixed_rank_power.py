@@ -1,0 +1,217 @@
+"""Claim 3 with power (docs/experiments/fixed-rank-power.md): the raw rows out of the sweep, the
+pre-registered analysis from those rows only, and the power it was planned with.
+
+    python docs/experiments/fixed_rank_power.py export results/fixed-rank-power
+    python docs/experiments/fixed_rank_power.py report          # prints the report's tables
+    python docs/experiments/fixed_rank_power.py power           # the planning table (~1 min)
+
+`export` copies each unit's eval.csv and episodes.csv (gzip) to
+docs/experiments/fixed-rank-power/rows/hopper/<method>/ (never checkpoints). `report` follows the
+pre-registration: a seed's score is the mean of its last 5 nominal evaluations (260k–300k); the
+primary tests are rank 7 − rank 64 and rank 13 − rank 64, each the two-sided exact permutation
+test of the difference of means (all C(20, 10) = 184,756 splits of 10 vs 10 seeds), Holm over the
+two; beside each the interval from inverting that test, Welch's interval and p, the pooled SD,
+Welch's detectable difference with its range over the SD's 95% interval, and the seeds that hop
+(score above 1,500) with Fisher's and Boschloo's exact tests. Rank 7 − rank 13 is exploratory and
+uncorrected. A rank whose units have not reached the budget is reported as running and enters
+no test.
+"""
+
+from __future__ import annotations
+
+import itertools
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy import stats as st
+from table1_ant_humanoid import _read, export, holm, seed_scores
+
+from adarl import stats
+
+HERE = Path(__file__).resolve().parent
+ROWS = HERE / "fixed-rank-power" / "rows"
+BUDGET = 300_000
+TASK = "hopper"
+RANKS = (7, 13, 64)
+SEEDS = 10
+HOP = 1500.0  # a Hopper score above this is a seed that hops (balancing ~1,000, falling ~450)
+PRIMARY = ((7, 64), (13, 64))
+EXPLORATORY = ((7, 13),)
+
+
+def method(rank: int) -> str:
+    """The sweep's folder name of a rank's units."""
+    return f"sac-fixed-rank_rank-{rank}"
+
+
+def load(rows: Path = ROWS) -> dict[int, dict]:
+    """rank -> {"scores": {seed: score}, "last_step"}: the ranks that have rows."""
+    out = {}
+    for rank in RANKS:
+        paths = sorted((rows / TASK / method(rank)).glob("seeds-*-eval.csv.gz"))
+        if not paths:
+            continue
+        scores, last = {}, BUDGET
+        for path in paths:
+            s, step = seed_scores(_read(path))
+            scores |= s
+            last = min(last, step)
+        out[rank] = {"scores": scores, "last_step": last}
+    return out
+
+
+def compare(x: np.ndarray, y: np.ndarray) -> dict:
+    """x − y: the exact permutation p and its inverted interval (primary), Welch's interval and
+    p, the pooled SD with Welch's detectable difference and its range, and the hop counts."""
+    welch = stats.welch_difference_ci(x, y)
+    sd = stats.pooled_sd(x, y)
+    return {
+        "difference": float(x.mean() - y.mean()),
+        "p": stats.permutation_p_value(x, y),
+        "interval": stats.two_sample_permutation_interval(x, y),
+        "welch": (welch.low, welch.high),
+        "welch_p": float(st.ttest_ind(x, y, equal_var=False).pvalue),
+        "sd": sd,
+        "detectable": stats.welch_minimum_detectable_difference(sd, sd, x.size, y.size),
+        "range": stats.detectable_difference_range(sd, x.size, y.size),
+        "counts": stats.counts_exact_test(
+            stats.count_above(x, HOP), x.size, stats.count_above(y, HOP), y.size
+        ),
+    }
+
+
+def _row(name: str, c: dict, holm_p: str) -> str:
+    lo, hi = c["interval"].low, c["interval"].high
+    w_lo, w_hi = c["welch"]
+    r_lo, r_hi = c["range"]
+    k = c["counts"]
+    return (
+        f"| {name} | {c['difference']:+,.0f} | [{lo:+,.0f}, {hi:+,.0f}] | {c['p']:.4f} | {holm_p} "
+        f"| [{w_lo:+,.0f}, {w_hi:+,.0f}] | {c['welch_p']:.3f} | {c['sd']:,.0f} "
+        f"| {c['detectable']:,.0f} ({r_lo:,.0f}–{r_hi:,.0f}) "
+        f"| {k.successes_x}/{k.n_x} vs {k.successes_y}/{k.n_y}: {k.fisher_p:.3f}, {k.boschloo_p:.3f} |"
+    )
+
+
+def report(data: dict[int, dict]) -> list[str]:
+    lines = ["### Scores (mean of the last 5 nominal evaluations per seed)", ""]
+    lines += ["| rank | seeds | last step | mean ± SD | hop | per seed |", "| ---: | ---: | ---: | ---: | ---: | --- |"]  # fmt: skip
+    for rank, d in sorted(data.items()):
+        v = np.array([d["scores"][s] for s in sorted(d["scores"])])
+        state = f"{d['last_step']:,}" + ("" if d["last_step"] >= BUDGET else " (running)")
+        spread = f"{v.mean():,.0f} ± {v.std(ddof=1):,.0f}" if v.size > 1 else "—"
+        per_seed = ", ".join(f"{x:,.0f}" for x in v)
+        hops = stats.count_above(v, HOP)
+        lines.append(f"| {rank} | {v.size} | {state} | {spread} | {hops} | {per_seed} |")
+    lines.append("")
+
+    def finished(rank):
+        d = data.get(rank)
+        return d is not None and d["last_step"] >= BUDGET and len(d["scores"]) == SEEDS
+
+    def arm(rank):
+        d = data[rank]["scores"]
+        return np.array([d[s] for s in sorted(d)])
+
+    head = [
+        "| comparison | difference | permutation 95% | permutation p | Holm p | Welch 95% "
+        "| Welch p | pooled SD | detectable at 80% (range) | hop: Fisher, Boschloo p |",
+        "| --- | ---: | --- | ---: | ---: | --- | ---: | ---: | ---: | --- |",
+    ]
+    lines += ["### Primary: each lower rank − rank 64 (exact permutation test, Holm over the two)", ""]  # fmt: skip
+    if not all(finished(r) for r in RANKS):
+        waiting = ", ".join(str(r) for r in RANKS if not finished(r))
+        lines += [f"Not computed until every rank's {SEEDS} seeds finish (rank {waiting}: running).", ""]  # fmt: skip
+        return lines
+    results = [compare(arm(x), arm(y)) for x, y in PRIMARY]
+    adjusted = holm([r["p"] for r in results])
+    lines += head
+    for (x, y), r, a in zip(PRIMARY, results, adjusted, strict=True):
+        decision = "**detected**" if a < 0.05 else "not detected"
+        lines.append(_row(f"rank {x} − rank {y} ({decision})", r, f"{a:.4f}"))
+    lines += ["", "### Exploratory, uncorrected", ""] + head
+    for x, y in EXPLORATORY:
+        lines.append(_row(f"rank {x} − rank {y}", compare(arm(x), arm(y)), "—"))
+    lines.append("")
+    return lines
+
+
+# ---------------------------------------------------------------- planning: the power table
+def _permutation_power(draw, sims: int, alphas: tuple, rng: np.random.Generator) -> list[float]:
+    """Rejection rates of the two-sided exact permutation test (`stats.permutation_p_value`'s
+    statistic and p) over `sims` data sets (x, y) = draw(rng), at each level in `alphas`."""
+    n = 2 * SEEDS
+    groups = np.array(list(itertools.combinations(range(n), SEEDS)), dtype=np.intp)
+    rejections = np.zeros(len(alphas))
+    for _ in range(sims):
+        x, y = draw(rng)
+        pooled = np.concatenate([x, y])
+        sums = pooled[groups].sum(axis=1)
+        null = sums / SEEDS - (pooled.sum() - sums) / SEEDS
+        p = stats._two_sided(null, x.mean() - y.mean())
+        rejections += [p < a for a in alphas]
+    return (rejections / sims).tolist()
+
+
+def power_table(sims: int = 400, seed: int = 0) -> list[str]:
+    """Power of each primary test at 10 vs 10 seeds: normal arms of equal SD (Welch's computed
+    power beside the permutation test's simulated one), and two-kind arms where a seed hops
+    (score ~ N(2,400, 300)) or not (~ N(700, 300)) with the arms' hop probabilities differing.
+    α = 0.05, and 0.025, the level the smaller p of the two faces under Holm."""
+    rng = np.random.default_rng(seed)
+    alphas = (0.05, 0.025)
+    lines = [
+        "| arms | true difference | permutation power, α 0.05 / 0.025 | Welch power, α 0.05 / 0.025 |",  # fmt: skip
+        "| --- | ---: | ---: | ---: |",
+    ]
+    for sd in (600, 900, 1200):
+        for factor in (1.0, 1.33):
+            delta = round(factor * sd)
+
+            def normal(r, delta=delta, sd=sd):
+                return r.normal(delta, sd, SEEDS), r.normal(0.0, sd, SEEDS)
+
+            perm = _permutation_power(normal, sims, alphas, rng)
+            welch = [stats.welch_power(delta, sd, sd, SEEDS, SEEDS, a) for a in alphas]
+            lines.append(
+                f"| normal, SD {sd:,} | {delta:,} | {perm[0]:.2f} / {perm[1]:.2f} "
+                f"| {welch[0]:.2f} / {welch[1]:.2f} |"
+            )
+    for h_x, h_y in ((0.6, 0.2), (0.7, 0.2), (0.8, 0.2)):
+
+        def two_kinds(r, h_x=h_x, h_y=h_y):
+            def arm(h):
+                hops = r.random(SEEDS) < h
+                return np.where(hops, r.normal(2400.0, 300.0, SEEDS), r.normal(700.0, 300.0, SEEDS))
+
+            return arm(h_x), arm(h_y)
+
+        perm = _permutation_power(two_kinds, sims, alphas, rng)
+        delta = (h_x - h_y) * 1700.0
+        lines.append(
+            f"| hop with p {h_x} vs {h_y} | {delta:,.0f} | {perm[0]:.2f} / {perm[1]:.2f} | — |"
+        )
+    return lines
+
+
+def main(argv: list[str]) -> int:
+    if argv[:1] in (["-h"], ["--help"]):
+        print(__doc__)
+        return 0
+    if argv[:1] == ["export"] and len(argv) == 2:
+        written = export(Path(argv[1]), ROWS)
+        print(f"wrote {len(written)} files under {ROWS}")
+        return 0
+    if argv[:1] == ["report"] and len(argv) in (1, 2):
+        print("\n".join(report(load(Path(argv[1]) if len(argv) == 2 else ROWS))))
+        return 0
+    if argv == ["power"]:
+        print("\n".join(power_table()))
+        return 0
+    print("usage: fixed_rank_power.py export SWEEP | report [ROWS] | power", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

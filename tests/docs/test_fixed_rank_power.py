@@ -1,0 +1,123 @@
+"""docs/experiments/fixed_rank_power.py: the raw rows out of a sweep, the pre-registered analysis
+from them and its planning power. Expected values are computed here by hand (exact permutation p
+from counting splits, Fisher's p from the hypergeometric law) from the rows the test writes."""
+
+import csv
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+EXPERIMENTS = Path(__file__).parents[2] / "docs/experiments"
+
+
+@pytest.fixture(scope="module")
+def script():
+    sys.path.insert(0, str(EXPERIMENTS))  # it imports table1_ant_humanoid's row helpers
+    try:
+        spec = importlib.util.spec_from_file_location("fixed_rank_power", EXPERIMENTS / "fixed_rank_power.py")  # fmt: skip
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(EXPERIMENTS))
+    return module
+
+
+def _unit(root, rank, first_seed, scores, last_step=300_000):
+    """A unit of sac-fixed-rank at `rank` whose seed first_seed + i evaluates to
+    scores[i] + step/1e5 (the mean of two episodes ±1) at every nominal evaluation."""
+    unit = root / "hopper" / f"sac-fixed-rank_rank-{rank}" / f"seeds-{first_seed}-{first_seed + 4}"
+    unit.mkdir(parents=True)
+    with (unit / "eval.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["step", "seed", "dynamics", "episode", "return", "length"])
+        for step in range(10_000, last_step + 1, 10_000):
+            for i, r in enumerate(scores):
+                for episode, noise in enumerate((-1.0, 1.0)):
+                    w.writerow([step, first_seed + i, "nominal", episode, r + step / 1e5 + noise, 1000])  # fmt: skip
+    (unit / "checkpoints").mkdir()  # never exported
+    return unit
+
+
+def _sweep(root, arms, last_steps=None):
+    last_steps = last_steps or {}
+    for rank, scores in arms.items():
+        _unit(root, rank, 0, scores[:5], last_steps.get(rank, 300_000))
+        _unit(root, rank, 5, scores[5:], last_steps.get(rank, 300_000))
+
+
+def test_scores_and_the_wait_for_every_rank(script, tmp_path):
+    arms = {7: [100.0 * i for i in range(10)], 13: [50.0] * 10, 64: [10.0] * 10}
+    _sweep(tmp_path / "sweep", arms, last_steps={64: 150_000})
+    script.export(tmp_path / "sweep", tmp_path / "rows")
+    assert sorted(p.name for p in (tmp_path / "rows/hopper/sac-fixed-rank_rank-7").iterdir()) == [
+        "seeds-0-4-eval.csv.gz",
+        "seeds-5-9-eval.csv.gz",
+    ]
+    data = script.load(tmp_path / "rows")
+    # the last five evaluations at 260k..300k: mean of step/1e5 = 2.8
+    assert data[7]["scores"] == pytest.approx({i: 100.0 * i + 2.8 for i in range(10)})
+    assert data[64]["last_step"] == 150_000
+    text = "\n".join(script.report(data))
+    assert "Not computed until every rank's 10 seeds finish (rank 64: running)" in text
+    assert "| 64 | 10 | 150,000 (running) |" in text
+
+
+def test_separated_arms_give_the_smallest_exact_p(script, tmp_path):
+    """Every rank-7 and rank-13 seed above every rank-64 seed: the observed split is the most
+    extreme of C(20, 10), so the two-sided exact p is 2/C(20, 10) and Holm doubles the smaller."""
+    low = [400.0 + 10 * i for i in range(10)]
+    arms = {
+        7: [2500.0 + 10 * i for i in range(10)],
+        13: [2000.0 + 10 * i for i in range(10)],
+        64: low,
+    }
+    _sweep(tmp_path / "sweep", arms)
+    script.export(tmp_path / "sweep", tmp_path / "rows")
+    lines = script.report(script.load(tmp_path / "rows"))
+    splits = math.comb(20, 10)
+    p = 2 / splits
+    row7 = next(line for line in lines if line.startswith("| rank 7 − rank 64"))
+    row13 = next(line for line in lines if line.startswith("| rank 13 − rank 64"))
+    assert "(**detected**)" in row7 and "(**detected**)" in row13
+    assert "| +2,100 |" in row7 and f"| {p:.4f} | {2 * p:.4f} |" in row7
+    # hop counts 10/10 (rank 7) against 0/10: Fisher's two-sided p is 2/C(20, 10) as well
+    assert f"10/10 vs 0/10: {p:.3f}," in row7
+    # rank 13's seeds all score 2,000-2,090: above the hop line too; rank 7 − rank 13 exploratory
+    row = next(line for line in lines if line.startswith("| rank 7 − rank 13 |"))
+    assert "| +500 |" in row and "| — |" in row
+
+
+def test_no_difference_is_not_detected(script, tmp_path):
+    rng = np.random.default_rng(1)
+    same = list(rng.normal(1000.0, 300.0, 10))
+    _sweep(tmp_path / "sweep", {7: same, 13: same, 64: same})
+    script.export(tmp_path / "sweep", tmp_path / "rows")
+    lines = script.report(script.load(tmp_path / "rows"))
+    rows = [
+        line for line in lines if line.startswith(("| rank 7 − rank 64", "| rank 13 − rank 64"))
+    ]
+    assert len(rows) == 2 and all("(not detected)" in r and "| +0 |" in r for r in rows)
+    assert all("| 1.0000 | 1.0000 |" in r for r in rows)  # identical arms: p = 1
+
+
+def test_power_simulation_holds_its_level_and_finds_large_gaps(script):
+    rng = np.random.default_rng(0)
+    null = script._permutation_power(
+        lambda r: (r.normal(0, 1, 10), r.normal(0, 1, 10)), 200, (0.05,), rng
+    )
+    assert null[0] <= 0.05 + 3 * math.sqrt(0.05 * 0.95 / 200)  # exact test: size ≤ α
+    large = script._permutation_power(
+        lambda r: (r.normal(5, 1, 10), r.normal(0, 1, 10)), 20, (0.05, 0.025), rng
+    )
+    assert large == [1.0, 1.0]
+
+
+def test_command_line(script, capsys):
+    assert script.main(["nonsense"]) == 2
+    assert "usage" in capsys.readouterr().err
+    assert script.main(["--help"]) == 0
+    assert "export" in capsys.readouterr().out
