@@ -28,18 +28,20 @@ RULES: dict[str, Rules] = {
 #: tests/device (docs/envs.md, "Device physics"); never mix the two backends in one comparison.
 DIFFERENCES: dict[str, str] = {
     "hopper": (
-        "same physics as MuJoCo C (float64, 200 steps: 1e-8 apart, same terminations) but a "
-        "torso-foot contact after a fall (9.6e-8)"
+        "same physics as MuJoCo C (float64, 200 steps: 1e-14 apart, same terminations, once C's "
+        "solver is converged; at the XML's tolerance C stops up to 9.6e-8 short)"
     ),
     "walker2d": "same physics as MuJoCo C (float64: 1.9e-12 apart over 200 steps, same terminations)",
     "ant": (
         "differs from MuJoCo C from the first contact: C and MJX align friction directions "
         "differently under the pyramidal cone (float64, one env step from the same state: "
-        "observation 2.07 apart, reward 0.24)"
+        "observation 2.07 apart, reward 0.24); C's RK4 with a free joint is not the textbook "
+        "RK4 that MJX computes (6.7e-8 per physics step)"
     ),
     "humanoid": (
-        "solves with Newton, the XML with PGS (MJX has no PGS): free-running 200 steps, reward "
-        "0.09 apart, same terminations (float64)"
+        "solves with Newton, the XML with PGS (MJX has no PGS); C's RK4 with a free joint is not "
+        "the textbook RK4 that MJX computes (3.2e-8 per physics step); contacts as Ant's: "
+        "free-running 200 steps, reward 0.09 apart, same terminations (float64)"
     ),
 }
 

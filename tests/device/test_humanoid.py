@@ -8,9 +8,11 @@ free-running at up to 327 in the observation (a velocity, after chaos; the other
 and 0.09 in the reward, with the same terminations over 800 lane-steps; from the same state each
 env step, 0.113 and 0.0032. This test file's own run on 2026-12-04 measured 0.20 and 0.00076
 free-running, 0.252 and 0.0036 one step from the same state. The bounds below are twice the largest (docs/envs.md, "Device physics").
-Switching the host envs to Newton does not close the gap: measured on 2026-12-04, 0.032-0.20 in
-the observation (the nominal lane apart from env step 8), so MJX's Newton is not C's either
-(not investigated further); the 1e-8 agreement of the task's rules is not shown for Humanoid.
+Switching the host envs to Newton does not close the gap (0.03-0.20 in the observation): Humanoid
+integrates with RK4, and C's RK4 step with a free joint is not the textbook RK4 that MJX computes
+(3.2e-8 per physics step), and contacts under the pyramidal cone differ as Ant's. With both sides
+on Euler and Newton the rules agree to 1.7e-12 until the first contact (docs/envs.md, "Device
+physics"; bench/device_physics.py); through contacts the 1e-8 agreement is not shown for Humanoid.
 """
 
 import pytest

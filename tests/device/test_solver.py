@@ -3,7 +3,7 @@ its Newton and line-search iterations capped on a copy of the model.
 
 Measured beside these tests (float64, tests/device/host_compare.py's four Hopper and Walker2d
 lanes, 200 env steps, 2026-12-04): capping the line search at 4 (``100,4``) leaves the device
-task exactly as far from MuJoCo C as the XML's solver (Hopper 9.6e-8, Walker2d 1.9e-12, the same
+task exactly as far from MuJoCo C as the XML's solver (Hopper 9.6e-8, where C stops at its tolerance; Walker2d 1.9e-12, the same
 terminations); capping Newton at 1 (``1,4``) does not (observation 1.8 and 18 apart, 9 and 14
 terminations that differ): docs/envs.md, "Device physics"."""
 
