@@ -52,21 +52,8 @@ def compare(args) -> None:
     import host_compare
     import jax
 
-    from adarl.device import physics
-
-    apply = _options(args)
-    table_of = physics.physics_table
-
-    def patched(*a, **k):  # the device task's base model, before `make` reads its options
-        table = table_of(*a, **k)
-        apply(table.mj_model)
-        return table
-
-    physics.physics_table = patched
     with jax.enable_x64(True):
-        setup = host_compare.setup(args.task)
-        for env in setup.envs:
-            apply(env.unwrapped.model)
+        setup = host_compare.setup(args.task, options=_options(args))
         for resync in (False, True):
             r = host_compare.compare(
                 setup.lanes, setup.fields, setup.envs, args.steps, resync_every_step=resync

@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from scipy import stats as st
+import table1_ant_humanoid as table1
 from table1_ant_humanoid import _read, export, holm, seed_scores
 
 from adarl import stats
@@ -62,19 +62,13 @@ def load(rows: Path = ROWS) -> dict[int, dict]:
 
 
 def compare(x: np.ndarray, y: np.ndarray) -> dict:
-    """x − y: the exact permutation p and its inverted interval (primary), Welch's interval and
-    p, the pooled SD with Welch's detectable difference and its range, and the hop counts."""
-    welch = stats.welch_difference_ci(x, y)
-    sd = stats.pooled_sd(x, y)
-    return {
-        "difference": float(x.mean() - y.mean()),
+    """x − y: table1_ant_humanoid's comparison (Welch's interval and p, the inverted permutation
+    interval, the pooled SD with Welch's detectable difference and its range) with the exact
+    permutation p, the primary test here, and the hop counts."""
+    c = table1.compare(x, y)
+    return c | {
+        "welch_p": c["p"],
         "p": stats.permutation_p_value(x, y),
-        "interval": stats.two_sample_permutation_interval(x, y),
-        "welch": (welch.low, welch.high),
-        "welch_p": float(st.ttest_ind(x, y, equal_var=False).pvalue),
-        "sd": sd,
-        "detectable": stats.welch_minimum_detectable_difference(sd, sd, x.size, y.size),
-        "range": stats.detectable_difference_range(sd, x.size, y.size),
         "counts": stats.counts_exact_test(
             stats.count_above(x, HOP), x.size, stats.count_above(y, HOP), y.size
         ),
@@ -82,7 +76,7 @@ def compare(x: np.ndarray, y: np.ndarray) -> dict:
 
 
 def _row(name: str, c: dict, holm_p: str) -> str:
-    lo, hi = c["interval"].low, c["interval"].high
+    lo, hi = c["permutation"].low, c["permutation"].high
     w_lo, w_hi = c["welch"]
     r_lo, r_hi = c["range"]
     k = c["counts"]
@@ -138,18 +132,22 @@ def report(data: dict[int, dict]) -> list[str]:
 
 
 # ---------------------------------------------------------------- planning: the power table
+def _exact_p(groups: np.ndarray, x: np.ndarray, y: np.ndarray) -> float:
+    """`stats.permutation_p_value(x, y)` for equal arms, over splits `groups` enumerated once by
+    the caller (the power simulation tests hundreds of data sets of the same size)."""
+    pooled = np.concatenate([x, y])
+    sums = pooled[groups].sum(axis=1)
+    null = sums / x.size - (pooled.sum() - sums) / y.size
+    return stats._two_sided(null, x.mean() - y.mean())
+
+
 def _permutation_power(draw, sims: int, alphas: tuple, rng: np.random.Generator) -> list[float]:
-    """Rejection rates of the two-sided exact permutation test (`stats.permutation_p_value`'s
-    statistic and p) over `sims` data sets (x, y) = draw(rng), at each level in `alphas`."""
-    n = 2 * SEEDS
-    groups = np.array(list(itertools.combinations(range(n), SEEDS)), dtype=np.intp)
+    """Rejection rates of the two-sided exact permutation test over `sims` data sets
+    (x, y) = draw(rng), at each level in `alphas`."""
+    groups = np.array(list(itertools.combinations(range(2 * SEEDS), SEEDS)), dtype=np.intp)
     rejections = np.zeros(len(alphas))
     for _ in range(sims):
-        x, y = draw(rng)
-        pooled = np.concatenate([x, y])
-        sums = pooled[groups].sum(axis=1)
-        null = sums / SEEDS - (pooled.sum() - sums) / SEEDS
-        p = stats._two_sided(null, x.mean() - y.mean())
+        p = _exact_p(groups, *draw(rng))
         rejections += [p < a for a in alphas]
     return (rejections / sims).tolist()
 

@@ -10,6 +10,7 @@ step's difference from the same state, not a trajectory's chaotic growth."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import mujoco
@@ -157,9 +158,15 @@ class Setup:
     episodes: list
 
 
-def setup(task_name: str, seed: int = 0, solver: tuple[int, int] | None = None) -> Setup:
+def setup(
+    task_name: str,
+    seed: int = 0,
+    solver: tuple[int, int] | None = None,
+    options: Callable[[mujoco.MjModel], None] | None = None,
+) -> Setup:
     """Build `Setup` for `task_name` (call inside ``jax.enable_x64(True)``), the device task's
-    solver capped at `solver` where given (the host's stays the XML's)."""
+    solver capped at `solver` where given (the host's stays the XML's); `options`, where given,
+    changes the device task's base model and every host env's model alike (e.g. the integrator)."""
     import jax.numpy as jnp
 
     from adarl.device.physics import physics_table, stack
@@ -169,6 +176,9 @@ def setup(task_name: str, seed: int = 0, solver: tuple[int, int] | None = None) 
     episodes = perturbed_episodes(table.schedule)
     params = [table.schedule.centroid()] + [table.params(i) for i in episodes]
     fields = stack([table.fields_at(p) for p in params])
-    lanes = Lanes(make(task_name, table.mj_model, jnp.float64, solver=solver))
     envs = host_envs(task_name, [("nominal", 0)] + [("paper", i) for i in episodes], seed)
+    if options is not None:
+        for model in [table.mj_model] + [env.unwrapped.model for env in envs]:
+            options(model)
+    lanes = Lanes(make(task_name, table.mj_model, jnp.float64, solver=solver))
     return Setup(lanes, fields, envs, episodes)

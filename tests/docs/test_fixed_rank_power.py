@@ -104,6 +104,18 @@ def test_no_difference_is_not_detected(script, tmp_path):
     assert all("| 1.0000 | 1.0000 |" in r for r in rows)  # identical arms: p = 1
 
 
+def test_the_simulations_exact_p_is_adarls(script):
+    import itertools
+
+    from adarl import stats
+
+    rng = np.random.default_rng(2)
+    groups = np.array(list(itertools.combinations(range(12), 6)))
+    for _ in range(3):
+        x, y = rng.normal(0.5, 1, 6), rng.normal(0, 1, 6)
+        assert script._exact_p(groups, x, y) == pytest.approx(stats.permutation_p_value(x, y))
+
+
 def test_power_simulation_holds_its_level_and_finds_large_gaps(script):
     rng = np.random.default_rng(0)
     null = script._permutation_power(
