@@ -3,12 +3,16 @@
 Anything a user can get wrong (a flag, a config field, a task name, a run folder) raises
 `UsageError` with a one-line message that names the bad value and what is allowed. The CLI turns
 it into `adarl: error: <message>` on stderr and exit code 2. A run that stops for another reason
-raises `RunFailed` (a file-system error at run time: exit code 1) or `Diverged` (a non-finite
-loss, parameter or return: exit code 3); see docs/reliability.md.
+raises `RunFailed` (a file-system error at run time: exit code 1), `Diverged` (a non-finite
+loss, parameter or return: exit code 3) or `Stopped` (SIGTERM or Ctrl-C, after a checkpoint:
+128 + the signal's number, as a shell reports a process the signal ended); see
+docs/reliability.md.
 """
 
 import dataclasses
 import math
+import shlex
+import signal
 
 #: What a trainer does when a loss, parameter or return stops being finite (`--on-divergence`).
 ON_DIVERGENCE = ("stop", "continue")
@@ -36,6 +40,20 @@ class Diverged(RunFailed):
     exit_code = 3
 
 
+class Stopped(RunFailed):
+    """A run that a signal asked to stop (SIGTERM: a cluster's preemption, `kill PID`; SIGINT:
+    Ctrl-C) and that stopped at the end of a step with a checkpoint there, so that `--resume`
+    goes on from that step exactly. Exit code 128 + the signal's number (143, 130)."""
+
+    def __init__(self, signum: int, step: int, run_dir) -> None:
+        super().__init__(
+            f"stopped by {signal.Signals(signum).name} at step {step:,} with a checkpoint there; "
+            f"resume with: adarl train --resume {shlex.quote(str(run_dir))}"
+        )
+        self.exit_code = 128 + signum
+        self.step = step
+
+
 #: What a command catches and reports as one line (`failure`); anything else is a bug and shows
 #: its traceback.
 REPORTED = (UsageError, RunFailed, OSError, KeyboardInterrupt)
@@ -44,9 +62,11 @@ REPORTED = (UsageError, RunFailed, OSError, KeyboardInterrupt)
 def failure(command: str, exc: BaseException) -> tuple[int, str]:
     """The exit code and the one-line message of `command` (e.g. "adarl train") stopped by one
     of the `REPORTED` exceptions: bad input 2, a `RunFailed` its own (1 for the file system, 3 for
-    divergence), any other file-system error 1, Ctrl-C 130."""
+    divergence, 128 + the signal for a `Stopped` run), any other file-system error 1, Ctrl-C 130."""
     if isinstance(exc, KeyboardInterrupt):
         return 130, f"{command}: interrupted"
+    if isinstance(exc, Stopped):  # asked for, not an error
+        return exc.exit_code, f"{command}: {exc}"
     if isinstance(exc, UsageError):
         return 2, f"{command}: error: {exc}"
     if isinstance(exc, RunFailed):

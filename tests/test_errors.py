@@ -21,6 +21,18 @@ from adarl import errors
         ),
         (OSError("no space"), 1, "adarl train: error: no space"),
         (KeyboardInterrupt(), 130, "adarl train: interrupted"),
+        (
+            errors.Stopped(15, 12_345, "runs/my run"),
+            143,
+            "adarl train: stopped by SIGTERM at step 12,345 with a checkpoint there; "
+            "resume with: adarl train --resume 'runs/my run'",
+        ),
+        (
+            errors.Stopped(2, 700, "r"),
+            130,
+            "adarl train: stopped by SIGINT at step 700 with "
+            "a checkpoint there; resume with: adarl train --resume r",
+        ),
     ],
 )
 def test_a_reported_failure_is_one_line_and_its_exit_code(exc, code, message):

@@ -94,8 +94,10 @@ def set_autogroup_nice(pid: int, nice: int) -> None:
         pass
 
 
-def stop_children(grace_s: float = 10.0) -> None:
-    """SIGTERM every unit process this process started, then SIGKILL what is left."""
+def stop_children(grace_s: float = 60.0) -> None:
+    """SIGTERM every unit process this process started, then SIGKILL what is left after
+    `grace_s`: time for each to finish its step and write its checkpoint (a run's checkpoint
+    holds its replay buffers; Humanoid's at 140k steps × 5 seeds is 1.1 GB)."""
     with _children_lock:
         procs = list(_children)
     for proc in procs:

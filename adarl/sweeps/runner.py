@@ -31,6 +31,7 @@ import fcntl
 import json
 import os
 import signal
+import threading
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -140,7 +141,7 @@ def run_sweep(sweep: Sweep, out: Path, executor, options: Options) -> int:
     """Run every unfinished unit of `sweep` into `out`; 0 if all are done, 1 if any failed."""
     out = Path(out).resolve()
     out.mkdir(parents=True, exist_ok=True)
-    with sweep_lock(out):
+    with sweep_lock(out), sigterm_as_interrupt():
         manifest = manifest_mod.Manifest.open(out, sweep, options.command)
         return SweepRun(sweep, out, executor, manifest, options).run()
 
@@ -204,7 +205,8 @@ class SweepRun:
                     self.progress_lines()
                     last_progress = time.monotonic()
                 self.manifest.save()
-        except BaseException as exc:  # Ctrl-C (or a bug): stop the units, record where they were
+        except BaseException as exc:  # Ctrl-C, SIGTERM (or a bug): stop the units, record where
+            # they were; each running unit gets SIGTERM and writes a checkpoint where it stops
             self.executor.close(cancel=True)
             for unit, _ in self.in_flight.values():
                 self.manifest.update(unit.id, status="queued", error="interrupted", pid=None)
@@ -436,6 +438,26 @@ def last_train_row(path: Path) -> tuple[int, float] | None:
         return (int(float(cells[header.index("step")])), float(cells[header.index("steps_per_s")]))
     except (IndexError, ValueError):
         return None
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """SIGTERM (`kill PID`, a batch system's preemption) stops a sweep as Ctrl-C does: its
+    running units get SIGTERM in turn (`adarl.sweeps.job.stop_children`), each writes a
+    checkpoint at the end of its current step (`adarl.train.loop.StopSignals`), and the same
+    command resumes them from there. Only the main thread can take signals."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def exit_text(returncode: int | None) -> str:

@@ -5,7 +5,8 @@ The loop owns what every algorithm does alike: starting a run folder or resuming
 newest intact checkpoint (under the run's lock), the CSV and TensorBoard logs and the progress
 bar, the triggers (`log_every`, `eval_every`, `checkpoint_every` and the end), the evaluation
 (seed 1,000,000 + s), each seed's best policy by nominal evaluation return, the checkpoint
-(arrays, meta.json, policy files), the divergence watch and the teardown.
+(arrays, meta.json, policy files), the divergence watch, a stop asked for by SIGTERM or Ctrl-C
+(a checkpoint at the end of the current step, then `Stopped`) and the teardown.
 
 A learner (`adarl.train.sac_learner`, `adarl.train.rnac_learner`) owns its algorithm's state
 and how it acts and learns; the loop drives it one way through `adarl.train.learner.Learner`
@@ -19,7 +20,9 @@ normalisers in `advance`, its jitted update when the rollout is full (docs/algor
 from __future__ import annotations
 
 import math
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable
 from io import BytesIO
@@ -27,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adarl.errors import UsageError
+from adarl.errors import Stopped, UsageError
 from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, codec, folder, layout, logs, provenance
 from adarl.runs.lock import RunLock
@@ -124,10 +127,41 @@ def train(
             learner.fresh()
             loop.open_logs(None)
         try:
-            loop.run()
+            with StopSignals() as stop:
+                loop.run(stop)
         finally:
             loop.close()
     return run_dir
+
+
+class StopSignals:
+    """SIGTERM (a cluster's preemption, `kill PID`, a sweep being stopped) and SIGINT (Ctrl-C)
+    while a run trains ask it to stop at the end of its current step, with a checkpoint there
+    (`Loop.run`), so that nothing trained is lost; a second one stops it at once
+    (KeyboardInterrupt). Python delivers signals to the main thread only, so elsewhere (a
+    thread of a notebook or a service) nothing is installed; the previous handlers come back
+    when the run ends."""
+
+    SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self.previous: dict[int, object] = {}
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self.previous[sig] = signal.signal(sig, self.handle)
+        return self
+
+    def handle(self, signum: int, frame) -> None:
+        if self.received is not None:
+            raise KeyboardInterrupt
+        self.received = signum
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self.previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
 
 
 class Loop:
@@ -258,6 +292,10 @@ class Loop:
             self.watch.note(quantity, seeds)
         self.watch.check(self.step)
 
+    def checkpoint(self) -> None:
+        self.check_divergence()  # never checkpoint non-finite parameters
+        self.save()
+
     def save(self, phase: str | None = None) -> None:
         """A checkpoint of everything; `phase` PRE_TRUNCATION: one kept in
         checkpoints/pre_truncation/ (never rotated), taken before the rest of the step's work."""
@@ -325,10 +363,11 @@ class Loop:
         if Event.EVALUATE in events:
             self.evaluate()
         if Event.CHECKPOINT in events:
-            self.check_divergence()  # never checkpoint non-finite parameters
-            self.save()
+            self.checkpoint()
 
-    def run(self) -> None:
+    def run(self, stop: StopSignals | None = None) -> None:
+        """Train to `total_steps`; when `stop` has received a signal, write a checkpoint at the
+        end of the current step (unless the step wrote one) and raise `Stopped`."""
         c = self.config
         bar = _progress(c.total_steps, self.step, self.progress, f"{self.learner.algo} {c.task}")
         self.clock = time.perf_counter(), self.step  # (time, step) of the last train.csv rows
@@ -346,6 +385,12 @@ class Loop:
                     f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False
                 )
                 bar.update(self.step - bar.n)
+            if stop is not None and stop.received is not None and self.step < c.total_steps:
+                if bar is not None:
+                    bar.close()
+                if Event.CHECKPOINT not in advance.events:
+                    self.checkpoint()
+                raise Stopped(stop.received, self.step, self.run_dir)
         if bar is not None:
             bar.close()
         folder.finish(self.run_dir, self.step)

@@ -1,9 +1,12 @@
 """Kills: a unit's training process killed after its first checkpoint is retried and resumes;
 a sweep killed mid-run takes its units down with it, leaves a valid manifest, and the same
-command resumes it. Either way the results are complete and nothing is written twice."""
+command resumes it; a sweep stopped by SIGTERM stops its units with a checkpoint where each
+stops, and the same command resumes from there. Either way the results are complete and nothing
+is written twice."""
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -81,6 +84,32 @@ def test_a_killed_sweep_resumes_when_run_again(tmp_path, capsys, write_spec, ass
     assert "1 units, 1 done (0 before this run), 0 failed" in text
     assert_complete(out / UNIT, BUDGET)
     assert not list(out.glob("**/*.tmp")) and not list(out.glob(".*.tmp"))
+
+
+def test_a_sweep_stopped_by_sigterm_checkpoints_its_units_and_resumes_from_there(
+    tmp_path, capsys, write_spec, assert_complete
+):
+    out = tmp_path / "sweep"
+    spec = write_spec(tmp_path / "s.yaml", budget=BUDGET)
+    sweep = _start_sweep(spec, out)
+    trainer = _wait_for_checkpoint(out, sweep)
+    sweep.send_signal(signal.SIGTERM)
+    text, _ = sweep.communicate(timeout=150)
+    assert sweep.returncode == 130, text  # as Ctrl-C
+    assert "sweep interrupted; run the same command again to resume it" in text
+    assert _gone(trainer)
+    log = (out / "logs" / "hopper__sac__seeds-0-1.log").read_text()
+    stopped = re.search(r"adarl train: stopped by SIGTERM at step ([\d,]+) with a checkpoint", log)
+    assert stopped, log
+    step = int(stopped.group(1).replace(",", ""))
+    newest = sorted((out / UNIT / "checkpoints").glob("step_*/meta.json"))[-1]
+    assert json.loads(newest.read_text())["step"] == step < BUDGET
+    record = json.loads((out / "manifest.json").read_text())["units"][UNIT]
+    assert (record["status"], record["error"]) == ("queued", "interrupted")
+
+    assert main(["sweep", str(spec), "--out", str(out)]) == 0
+    assert f"running  attempt 2, resuming from step {step:,}" in capsys.readouterr().out
+    assert_complete(out / UNIT, BUDGET)
 
 
 def test_a_unit_held_by_another_process_is_not_trained_twice(tmp_path):

@@ -1,7 +1,11 @@
 """The one training loop (adarl/train/loop.py): what it does alike for every learner — when it
-logs, evaluates and checkpoints, and each seed's best policy."""
+logs, evaluates and checkpoints, each seed's best policy, and what a stop signal does (a stopped
+run's checkpoint and exact resume: tests/train/test_resume_every_algorithm.py)."""
 
 import json
+import os
+import signal
+import threading
 
 import numpy as np
 import pytest
@@ -79,3 +83,27 @@ def test_a_checkpoint_from_before_best_policies_records_where_they_begin(tmp_pat
     best.offer(0, 750_000, 12.5, policies[1])  # a tie keeps the earlier
     assert best.meta()["seeds"] == {"0": {"step": 650_000, "return": 12.5}}
     assert best.checkpoint_files() == {"best_policy_seed_0.npz": to_bytes(policies[0])}
+
+
+def test_a_signal_asks_for_a_stop_and_a_second_one_stops_at_once():
+    before = {s: signal.getsignal(s) for s in loop.StopSignals.SIGNALS}
+    with loop.StopSignals() as stop:
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert stop.received == signal.SIGTERM  # noted, the process goes on
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+    assert {s: signal.getsignal(s) for s in loop.StopSignals.SIGNALS} == before
+
+
+def test_stop_signals_installs_nothing_outside_the_main_thread():
+    seen = []
+
+    def in_thread():
+        with loop.StopSignals():
+            seen.append(signal.getsignal(signal.SIGTERM))
+
+    before = signal.getsignal(signal.SIGTERM)
+    thread = threading.Thread(target=in_thread)
+    thread.start()
+    thread.join()
+    assert seen == [before]

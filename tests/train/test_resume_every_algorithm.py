@@ -1,16 +1,21 @@
 """Every registered algorithm keeps the exact-resume promise (the pattern of Stable-Baselines3's
-test_deterministic.py): a tiny run killed between two checkpoints and resumed writes the same
-CSV rows, spectra, final checkpoint arrays and policy files as the same run uninterrupted."""
+test_deterministic.py): a tiny run killed between two checkpoints and resumed, or stopped there
+by SIGTERM (a checkpoint where it stops) and resumed, writes the same CSV rows, spectra, final
+checkpoint arrays and policy files as the same run uninterrupted."""
 
 import json
+import os
+import signal
 
 import numpy as np
 import pytest
 
 from adarl.algos import registry
+from adarl.errors import Stopped
 from adarl.runs import checkpoints, folder
 from adarl.runs.layout import CHECKPOINT_DIR
 from adarl.runs.logs import read_csv
+from adarl.train import loop
 from adarl.train.trainers import trainer
 
 # Each algorithm's `smoke` preset with the budgets of its own tests (tests/algos/test_sac_family.py,
@@ -63,11 +68,29 @@ def _final(run):
     return sorted((run / CHECKPOINT_DIR).iterdir())[-1]
 
 
+def _config(algo):
+    return registry.resolve_config(algo, "smoke", {"task": "hopper", **BUDGETS[algo]})
+
+
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory):
+    """The uninterrupted run of an algorithm, trained once per module (and xdist worker)."""
+    runs = {}
+
+    def get(algo):
+        if algo not in runs:
+            runs[algo] = trainer(algo)(
+                _config(algo), tmp_path_factory.mktemp(f"full-{algo}"), progress=False
+            )
+        return runs[algo]
+
+    return get
+
+
 @pytest.mark.parametrize("algo", registry.ALGOS)
-def test_killed_and_resumed_run_equals_an_uninterrupted_one(algo, tmp_path, monkeypatch):
-    config = registry.resolve_config(algo, "smoke", {"task": "hopper", **BUDGETS[algo]})
+def test_killed_and_resumed_run_equals_an_uninterrupted_one(algo, full_run, tmp_path, monkeypatch):
+    config = _config(algo)
     train = trainer(algo)
-    train(config, tmp_path / "full", progress=False)
 
     saved = []
     original = checkpoints.save_checkpoint
@@ -93,22 +116,67 @@ def test_killed_and_resumed_run_equals_an_uninterrupted_one(algo, tmp_path, monk
     assert (algo_back, config_back) == (algo, config)
     train(config_back, killed, resume=True, progress=False)
 
-    full = tmp_path / "full"
-    assert (killed / "DONE").read_text() == (full / "DONE").read_text()
+    assert_same_run(full_run(algo), killed, algo)
+
+
+# The SIGTERM comes at the end of the first step at or past this one: between two checkpoints,
+# at a step no trigger checkpoints (RNAC's inside its second rollout).
+STOP_AFTER = {"rnac": 700}
+
+
+@pytest.mark.parametrize("algo", registry.ALGOS)
+def test_a_run_stopped_by_sigterm_resumes_exactly_from_where_it_stopped(
+    algo, full_run, tmp_path, monkeypatch
+):
+    config = _config(algo)
+    sent = []
+    end_of_step = loop.Loop.end_of_step
+
+    def end_of_step_then_sigterm(self, *args, **kwargs):
+        end_of_step(self, *args, **kwargs)
+        if self.step >= STOP_AFTER.get(algo, 250) and not sent:
+            # the run's handler, not the default that would end this test's process
+            assert isinstance(
+                getattr(signal.getsignal(signal.SIGTERM), "__self__", None), loop.StopSignals
+            )
+            sent.append(self.step)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(loop.Loop, "end_of_step", end_of_step_then_sigterm)
+    before = signal.getsignal(signal.SIGTERM)
+    stopped = tmp_path / "stopped"
+    with pytest.raises(Stopped) as info:
+        trainer(algo)(config, stopped, progress=False)
+    monkeypatch.undo()
+    assert signal.getsignal(signal.SIGTERM) is before  # the handlers are put back
+    assert (info.value.step, info.value.exit_code) == (sent[0], 128 + signal.SIGTERM)
+    assert not (stopped / "DONE").exists()
+    steps = [int(p.name.split("_")[1]) for p in (stopped / CHECKPOINT_DIR).glob("step_*")]
+    assert max(steps) == sent[0] and sent[0] % config.checkpoint_every != 0
+    trainer(algo)(config, stopped, resume=True, progress=False)
+
+    assert_same_run(full_run(algo), stopped, algo)
+
+
+def assert_same_run(full, other, algo):
+    """`other` (interrupted and resumed) wrote what `full` (uninterrupted) did: DONE, every CSV
+    row (wall-clock columns aside), every spectrum, and the final checkpoint's arrays, policy
+    files and meta."""
+    assert (other / "DONE").read_text() == (full / "DONE").read_text()
     names = sorted(p.name for p in full.glob("*.csv"))
-    assert names == sorted(p.name for p in killed.glob("*.csv"))
+    assert names == sorted(p.name for p in other.glob("*.csv"))
     for name in names:
-        assert _csv(killed, name) == _csv(full, name), name
+        assert _csv(other, name) == _csv(full, name), name
     spectra = sorted(p.name for p in full.glob("spectra/*.npz"))
-    assert spectra == sorted(p.name for p in killed.glob("spectra/*.npz"))
+    assert spectra == sorted(p.name for p in other.glob("spectra/*.npz"))
     if algo == "adarl":
         assert spectra, "the adarl budget should truncate"
     for name in spectra:
-        with np.load(full / "spectra" / name) as a, np.load(killed / "spectra" / name) as b:
+        with np.load(full / "spectra" / name) as a, np.load(other / "spectra" / name) as b:
             assert a.files == b.files
             for key in a.files:
                 np.testing.assert_array_equal(a[key], b[key], err_msg=f"{name} {key}")
-    a_dir, b_dir = _final(full), _final(killed)
+    a_dir, b_dir = _final(full), _final(other)
     assert a_dir.name == b_dir.name
     with np.load(a_dir / "arrays.npz") as a, np.load(b_dir / "arrays.npz") as b:
         assert a.files == b.files
