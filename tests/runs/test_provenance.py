@@ -196,7 +196,7 @@ def test_the_trainer_records_each_resume_and_the_report_warns(tmp_path, monkeypa
     """A run created by one commit and resumed by another says so in the report."""
     from adarl.train import loop
 
-    def stop(self):
+    def stop(self, *args):
         raise StopTraining
 
     monkeypatch.setattr(loop.Loop, "run", stop)  # create (or resume), then stop at once
