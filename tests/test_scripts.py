@@ -70,6 +70,7 @@ def test_bench_throughput_runs_at_a_tiny_size():
         # policy files replaced after write_run: the checkpoint's checksums must follow
         ["bench/suites.py", "--suite", "m2td3-1d", "--workers", "1", "--steps", "100"],
         ["bench/throughput_rnac.py", "--steps", "256"],
+        ["bench/checkpoint_memory.py", "--seeds", "2", "--rows", "1000", "--task", "hopper"],
     ],
 )
 def test_bench_scripts_run_at_a_tiny_size(argv):

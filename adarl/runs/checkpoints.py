@@ -22,6 +22,7 @@ import numpy as np
 from adarl import __version__
 from adarl.errors import UsageError, reason
 from adarl.files import fs_errors, fsync_dir, json_default, read_json, temp_dir
+from adarl.runs import npz
 from adarl.runs.layout import (
     ARRAYS_FILE,
     CHECKPOINT_DIR,
@@ -60,7 +61,7 @@ def save_checkpoint(
     folder: str = CHECKPOINT_DIR,
 ) -> Path:
     """Write `<folder>/step_<step>/` (default `checkpoints/`) atomically: a temp folder holding
-    arrays.npz, the extra `files` (name -> bytes, e.g. policy files) and meta.json (written last,
+    arrays.npz (`arrays`' values: arrays, or `adarl.runs.npz.Stacked` parts), the extra `files` (name -> bytes, e.g. policy files) and meta.json (written last,
     with the sha256 of arrays.npz and of every extra file) is renamed into place, then older checkpoints of that folder
     beyond `keep` go (0: none). An OSError becomes a one-line `RunFailed`; the checkpoints
     already there are left as they were."""
@@ -71,7 +72,7 @@ def save_checkpoint(
         tmp = temp_dir(root, prefix=f".tmp_{STEP_PREFIX}")
         try:
             with open(tmp / ARRAYS_FILE, "wb") as f:
-                np.savez(f, **arrays)
+                npz.write(f, arrays)  # np.savez's format, buffers never joined in memory
                 f.flush()
                 os.fsync(f.fileno())
             files_ = sorted((files or {}).items())
@@ -156,13 +157,13 @@ def load_checkpoint(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dic
     """Read one checkpoint folder. A damaged one (unreadable meta.json or arrays.npz, or a file
     not matching its checksum in meta.json: arrays.npz and the policy files) raises
     `CheckpointDamaged`, another format version a UsageError; both one line. Checkpoints written
-    before checksums load without the check."""
+    before checksums load without the check. Large arrays (the replay buffers) come back as
+    read-only memory maps of arrays.npz (`adarl.runs.npz.read`)."""
     path = Path(path)
     try:
         meta = read_meta(path)
         verify_checksums(path, meta)
-        with np.load(path / ARRAYS_FILE, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
+        arrays = npz.read(path / ARRAYS_FILE)  # the replay buffers memory-mapped
     except CheckpointDamaged:
         raise
     except Exception as exc:  # BadZipFile, EOFError, OSError, ValueError, …: all mean damaged

@@ -118,6 +118,7 @@ def train(
                 loop.open_logs({name: 0 for name in loop.log_names()})
             else:
                 loop.restore(path, arrays, meta)
+            del arrays  # the lanes hold copies; let go of the checkpoint's memory maps
             provenance.record_resume(run_dir, loop.step)  # the code that goes on from here
         else:
             folder.check_new_run_dir(run_dir)

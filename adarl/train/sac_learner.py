@@ -36,7 +36,7 @@ import numpy as np
 
 from adarl.algos import replay, sac, sac_config, schedule
 from adarl.errors import UsageError
-from adarl.runs import checkpoints, codec, layout
+from adarl.runs import checkpoints, codec, layout, npz
 from adarl.train.guards import check_training_memory, nonfinite_seeds
 from adarl.train.learner import Advance, Episode, Truncation, due
 
@@ -250,8 +250,8 @@ class SACLearner:
         bufs = [jax.device_get(lane.state["buffer"]) for lane in self.lanes]
         # only the rows written so far (plus the provisional one) are worth saving
         used = int(min(bufs[0]["obs"].shape[1], max(int(np.max(b["size"])) for b in bufs) + 1))
-        for k in BUFFER_ROW_KEYS:
-            arrays[f"buffer/{k}"] = np.concatenate([b[k][:, :used] for b in bufs])
+        for k in BUFFER_ROW_KEYS:  # joined in the file, not in memory
+            arrays[f"buffer/{k}"] = npz.Stacked([b[k][:, :used] for b in bufs])
         for k in ("ptr", "size"):
             arrays[f"buffer/{k}"] = np.concatenate([b[k] for b in bufs])
         arrays["host/obs"] = self.obs

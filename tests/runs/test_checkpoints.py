@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from adarl.errors import RunFailed, UsageError
-from adarl.runs import checkpoints
+from adarl.runs import checkpoints, npz
 from adarl.runs.layout import checkpoint_step
 
 
@@ -113,10 +113,11 @@ def test_checkpoint_folders_are_readable_like_the_rest_of_the_run(tmp_path):
 def test_disk_full_during_a_checkpoint_is_one_line_and_keeps_the_previous(tmp_path, monkeypatch):
     previous = _save(tmp_path, 100, value=1.0)
 
-    def full(*args, **kwargs):
+    def full(file, arrays):  # the disk fills part way through arrays.npz
+        file.write(b"PK\x03\x04")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(np, "savez", full)
+    monkeypatch.setattr(npz, "write", full)
     with pytest.raises(RunFailed) as err:
         _save(tmp_path, 200)
     message = str(err.value)

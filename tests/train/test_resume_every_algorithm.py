@@ -1,7 +1,8 @@
 """Every registered algorithm keeps the exact-resume promise (the pattern of Stable-Baselines3's
-test_deterministic.py): a tiny run killed between two checkpoints and resumed, or stopped there
-by SIGTERM (a checkpoint where it stops) and resumed, writes the same CSV rows, spectra, final
-checkpoint arrays and policy files as the same run uninterrupted."""
+test_deterministic.py): a tiny run killed between two checkpoints and resumed (reading every
+array of its checkpoint memory-mapped), or stopped there by SIGTERM (a checkpoint where it stops)
+and resumed, writes the same CSV rows, spectra, final checkpoint arrays and policy files as the
+same run uninterrupted."""
 
 import json
 import os
@@ -12,7 +13,7 @@ import pytest
 
 from adarl.algos import registry
 from adarl.errors import Stopped
-from adarl.runs import checkpoints, folder
+from adarl.runs import checkpoints, folder, npz
 from adarl.runs.layout import CHECKPOINT_DIR
 from adarl.runs.logs import read_csv
 from adarl.train import loop
@@ -114,6 +115,7 @@ def test_killed_and_resumed_run_equals_an_uninterrupted_one(algo, full_run, tmp_
     assert max(steps_after) > first  # rows past the checkpoint, which the resume must cut
     algo_back, config_back = folder.config_from_run(killed)
     assert (algo_back, config_back) == (algo, config)
+    monkeypatch.setattr(npz, "MMAP_FROM", 1)  # every array of the checkpoint memory-mapped
     train(config_back, killed, resume=True, progress=False)
 
     assert_same_run(full_run(algo), killed, algo)
