@@ -3,7 +3,10 @@
 # resumes every unit from its newest checkpoint and skips finished ones, so running this again
 # (at the start of every session) continues where the last session stopped:
 #   git worktree add --detach /work/camp COMMIT     # the campaign's frozen code (campaign.md)
-#   ../shared/tools/background /work/main/results/campaign.log bash /work/main/docs/experiments/campaign.sh
+#   ../shared/tools/background /work/main/results/campaign.log bash /work/main/docs/experiments/campaign.sh > /work/main/results/campaign.pid
+# and, before a session ends, stop it without losing a step (each unit writes a checkpoint
+# where it stops, and the sweep exits 130, which ends this script too):
+#   kill -TERM -- -$(cat /work/main/results/campaign.pid)
 set -u
 cd /work/camp                      # python -m puts the working folder first: the frozen code runs
 PY=/work/main/.venv/bin/python
@@ -12,5 +15,8 @@ mkdir -p "$R"
 for preset in table1-ant-humanoid paper-schedule-walker2d fixed-rank-power; do
   echo "== $(date -u +%FT%TZ) $preset"
   $PY -m adarl.cli.main sweep "$preset" --out "$R/$preset" --workers 2 --no-progress
-  echo "== $(date -u +%FT%TZ) $preset exited $?"
+  code=$?
+  echo "== $(date -u +%FT%TZ) $preset exited $code"
+  # stopped (Ctrl-C, SIGTERM: 130) or refused (bad input: 2): go no further
+  if [ "$code" -eq 130 ] || [ "$code" -eq 2 ]; then exit "$code"; fi
 done
