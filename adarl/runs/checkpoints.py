@@ -61,10 +61,11 @@ def save_checkpoint(
     folder: str = CHECKPOINT_DIR,
 ) -> Path:
     """Write `<folder>/step_<step>/` (default `checkpoints/`) atomically: a temp folder holding
-    arrays.npz (`arrays`' values: arrays, or `adarl.runs.npz.Stacked` parts), the extra `files` (name -> bytes, e.g. policy files) and meta.json (written last,
-    with the sha256 of arrays.npz and of every extra file) is renamed into place, then older checkpoints of that folder
-    beyond `keep` go (0: none). An OSError becomes a one-line `RunFailed`; the checkpoints
-    already there are left as they were."""
+    arrays.npz (`arrays`' values: arrays, or `adarl.runs.npz.Stacked` parts), the extra `files`
+    (name -> bytes, e.g. policy files) and meta.json (written last, with the sha256 of
+    arrays.npz and of every extra file) is renamed into place, then older checkpoints of that
+    folder beyond `keep` go (0: none). An OSError becomes a one-line `RunFailed`; the
+    checkpoints already there are left as they were."""
     root = Path(run_dir) / folder
     final = root / step_name(step)
     with fs_errors(final):
