@@ -146,8 +146,9 @@ def check_complete_config(run_dir: str | os.PathLike, recorded: dict | None = No
     default (a deleted `total_steps:` line would train to the default budget). Fields a run
     written before they existed lacks are not in its checkpoint's record, and keep their
     defaults. A retired field's value that adarl no longer trains is refused here too
-    (`registry.check_resumable`): every resume and fork comes through here. The fields of
-    `registry.ADDED_FIELDS` a run without a checkpoint lacks keep the value older runs meant."""
+    (`registry.check_resumable`): every resume and fork comes through here. A field of
+    `registry.ADDED_FIELDS` that config.yaml lacks keeps the value older runs meant, also when
+    a checkpoint written since (by a resume on newer code) records that value."""
     from adarl.algos import registry
 
     values = load_config(run_dir)
@@ -156,7 +157,7 @@ def check_complete_config(run_dir: str | os.PathLike, recorded: dict | None = No
     names = registry.field_names(registry.record_algo(values, str(path))) - {"algo"}
     known = recorded is not None
     for name, value in (recorded if known else dict.fromkeys(sorted(names))).items():
-        if not known and name in registry.ADDED_FIELDS:
+        if name in registry.ADDED_FIELDS and (not known or value == registry.ADDED_FIELDS[name]):
             continue  # older run folders lack it and mean its value then
         if name not in values and name in names:
             line = f"`{name}: {json.dumps(value)}`" if known else f"its {name}: line"

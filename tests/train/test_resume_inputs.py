@@ -253,3 +253,23 @@ def test_a_run_without_checkpoint_written_before_a_field_existed_resumes(sac_run
     (run_dir / "config.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     with pytest.raises(UsageError, match="has no field 'total_steps'"):
         check_complete_config(run_dir)
+
+
+def test_a_run_created_before_a_field_existed_resumes_from_a_checkpoint_that_records_it(
+    sac_run, tmp_path
+):
+    """The campaign's Table 1 units, created by 8bee27f (no `backend` line) and resumed on newer
+    code, wrote checkpoints whose config records `backend: host`; their next resume must accept
+    the missing line at that value, and still refuse it when the checkpoint recorded another."""
+    from adarl.runs.folder import check_complete_config
+
+    run_dir = unfinished(sac_run, tmp_path / "run")
+    doc = yaml.safe_load((run_dir / "config.yaml").read_text())
+    assert doc.pop("backend") == "host"
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    _, meta = checkpoints.load_checkpoint(checkpoints.checkpoint_dirs(run_dir)[-1])
+    assert meta["config"]["backend"] == "host"
+    check_complete_config(run_dir, meta["config"])  # no error
+    assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 0
+    with pytest.raises(UsageError, match="has no field 'backend'.*`backend: \"device\"`"):
+        check_complete_config(run_dir, {**meta["config"], "backend": "device"})
