@@ -468,6 +468,20 @@ def count_above(scores: np.ndarray, threshold: float) -> int:
     return int(np.sum(np.asarray(scores, float) > threshold))
 
 
+def holm(p_values: list[float]) -> list[float]:
+    """Holm's step-down adjusted p-values, in the input order: with p_(1) ≤ … ≤ p_(m),
+    p̃_(j) = max_{i ≤ j} min(1, (m − i + 1)·p_(i)) (Holm 1979). Rejecting where p̃ < α keeps
+    the family-wise error rate at α. Two tests at 0.01 and 0.04: 0.02 and 0.04."""
+    p = np.asarray(p_values, float)
+    if np.any(~np.isfinite(p)) or np.any((p < 0) | (p > 1)):
+        raise ValueError(f"p-values must lie in [0, 1]: {p.tolist()}")
+    adjusted, running = np.empty(p.size), 0.0
+    for rank, i in enumerate(np.argsort(p, kind="stable")):
+        running = max(running, min(1.0, (p.size - rank) * p[i]))
+        adjusted[i] = running
+    return adjusted.tolist()
+
+
 # ----------------------------------------------------------------------------- power
 def pooled_sd(x: np.ndarray, y: np.ndarray) -> float:
     """√(((n_x − 1)s_x² + (n_y − 1)s_y²) / (n_x + n_y − 2)), the SD the two-sample t-test assumes

@@ -429,3 +429,35 @@ def test_sd_interval_and_detectable_range_of_issue_34():
     low8, high8 = stats.sd_confidence_interval(1000.0, 8)
     assert two[0] == pytest.approx(stats.welch_minimum_detectable_difference(low8, low8, 5, 5))
     assert two[1] == pytest.approx(stats.welch_minimum_detectable_difference(high8, high8, 5, 5))
+
+
+def _holm_by_procedure(p_values: list[float]) -> list[float]:
+    """Holm's adjusted p of each test as the smallest level α at which the step-down procedure
+    (reject p_(1), p_(2), … while p_(j) ≤ α / (m − j + 1)) rejects it, found by running the
+    procedure at every level where a decision can change."""
+    m = len(p_values)
+    order = sorted(range(m), key=lambda i: p_values[i])
+    levels = sorted({min(1.0, (m - j) * p_values[i]) for j, i in enumerate(order)} | {1.0})
+    adjusted = [1.0] * m
+    for alpha in reversed(levels):  # the smallest level that rejects is found last
+        for j, i in enumerate(order):
+            if p_values[i] > alpha / (m - j):
+                break
+            adjusted[i] = alpha
+    return adjusted
+
+
+@pytest.mark.parametrize(
+    "p_values",
+    [[0.01, 0.04], [0.03, 0.02], [0.5, 0.9], [0.001, 0.04, 0.03, 0.2], [0.02, 0.02, 0.5]],
+)
+def test_holm_equals_the_step_down_procedure(p_values):
+    assert stats.holm(p_values) == pytest.approx(_holm_by_procedure(p_values))
+
+
+def test_holm_by_hand_and_refuses_what_is_no_p_value():
+    assert stats.holm([0.01, 0.04]) == pytest.approx([0.02, 0.04])
+    assert stats.holm([0.03, 0.02]) == pytest.approx([0.04, 0.04])  # monotone: 2 × 0.02, then 0.03
+    assert stats.holm([0.5, 0.9]) == pytest.approx([1.0, 1.0])  # capped at 1
+    with pytest.raises(ValueError, match="in \\[0, 1\\]"):
+        stats.holm([0.2, float("nan")])

@@ -82,17 +82,6 @@ def two_sample(name: str, x: np.ndarray, y: np.ndarray, test: str) -> dict:
     }
 
 
-def holm(p_values: list[float]) -> list[float]:
-    """Holm's step-down adjusted p-values (family-wise error), in the input order."""
-    order = np.argsort(p_values)
-    m = len(p_values)
-    adjusted, running = [0.0] * m, 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (m - rank) * p_values[i]))
-        adjusted[i] = running
-    return adjusted
-
-
 def compute() -> dict[str, list[dict]]:
     """Every comparison, grouped by experiment."""
     out: dict[str, list[dict]] = {}
@@ -129,7 +118,7 @@ def compute() -> dict[str, list[dict]]:
         ),
     ]
     # the report's p column is the exact permutation p: Holm over the three as reported
-    for row, adjusted in zip(physics, holm([r["perm_p"] for r in physics]), strict=True):
+    for row, adjusted in zip(physics, stats.holm([r["perm_p"] for r in physics]), strict=True):
         row["holm_p"] = adjusted
     out["physics-power"] = physics
 
@@ -141,7 +130,7 @@ def compute() -> dict[str, list[dict]]:
     versus_sac["counts"] = stats.counts_exact_test(hops["adarl"], 5, hops["sac"], 5)
     control["counts"] = stats.counts_exact_test(hops["adarl"], 5, hops["control"], 5)
     for row, adjusted in zip(
-        (control, versus_sac), holm([control["t_p"], versus_sac["t_p"]]), strict=True
+        (control, versus_sac), stats.holm([control["t_p"], versus_sac["t_p"]]), strict=True
     ):
         row["holm_p"] = adjusted
     mean_ci = stats.mean_ci(arm["adarl"])

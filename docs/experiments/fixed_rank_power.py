@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import table1_ant_humanoid as table1
-from table1_ant_humanoid import _read, export, holm, seed_scores
+from table1_ant_humanoid import _read, export, seed_scores
 
 from adarl import stats
 
@@ -119,7 +119,7 @@ def report(data: dict[int, dict]) -> list[str]:
         lines += [f"Not computed until every rank's {SEEDS} seeds finish (rank {waiting}: running).", ""]  # fmt: skip
         return lines
     results = [compare(arm(x), arm(y)) for x, y in PRIMARY]
-    adjusted = holm([r["p"] for r in results])
+    adjusted = stats.holm([r["p"] for r in results])
     lines += head
     for (x, y), r, a in zip(PRIMARY, results, adjusted, strict=True):
         decision = "**detected**" if a < 0.05 else "not detected"

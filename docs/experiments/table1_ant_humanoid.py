@@ -116,16 +116,6 @@ def compare(x: np.ndarray, y: np.ndarray) -> dict:
     }
 
 
-def holm(p: list[float]) -> list[float]:
-    """Holm's step-down adjusted p-values."""
-    order = np.argsort(p)
-    adjusted, running = np.empty(len(p)), 0.0
-    for i, j in enumerate(order):
-        running = max(running, min(1.0, (len(p) - i) * p[j]))
-        adjusted[j] = running
-    return adjusted.tolist()
-
-
 def _num(x: float) -> str:
     return "∞" if np.isinf(x) else f"{x:+,.0f}"
 
@@ -175,7 +165,7 @@ def report(data: dict) -> list[str]:
         lines += [f"Not computed until both tasks' AdaRL and SAC units finish ({waiting}: running).", ""]  # fmt: skip
     else:
         results = {t: compare(arm(t, ADARL), arm(t, SAC)) for t in TASKS}
-        adjusted = holm([results[t]["p"] for t in TASKS])
+        adjusted = stats.holm([results[t]["p"] for t in TASKS])
         lines += head
         for t, a in zip(TASKS, adjusted):
             decision = "**detected**" if a < 0.05 else "not detected"

@@ -51,12 +51,6 @@ def test_scores_are_the_mean_of_the_last_five_nominal_evaluations(script, tmp_pa
     assert data["ant"]["sac"]["last_step"] == 300_000
 
 
-def test_holm_adjusts_step_down(script):
-    assert script.holm([0.01, 0.04]) == pytest.approx([0.02, 0.04])
-    assert script.holm([0.03, 0.02]) == pytest.approx([0.04, 0.04])
-    assert script.holm([0.5, 0.9]) == pytest.approx([1.0, 1.0])  # 2 × 0.5, capped at 1
-
-
 def test_report_runs_the_primary_tests_only_when_both_tasks_finished(script, tmp_path):
     sweep = tmp_path / "sweep"
     sac = [1000.0, 1100.0, 900.0, 1050.0, 950.0]
