@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import collections
 import csv
+import gzip
 import sys
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import numpy as np
 from adarl import stats
 from adarl.results.collect import last_k_scores
 from adarl.results.runs import load_run
+from adarl.runs.logs import read_csv
 
 LAYERS = ("actor_1", "q1_1", "q2_1")
 LAST_K = 5  # the report's default score: the mean of the last 5 evaluations
@@ -25,8 +27,14 @@ TARGET = 300.0
 
 
 def rows(path: Path) -> list[dict]:
-    with path.open(newline="") as f:
-        return list(csv.DictReader(f))
+    """A run CSV's rows (a half-written last line left out), or those of `path.gz` where only
+    that is there (the raw rows the report scripts export into docs/experiments/); none where
+    neither is."""
+    packed = path.with_name(path.name + ".gz")
+    if not path.is_file() and packed.is_file():
+        with gzip.open(packed, "rt", newline="") as f:
+            return list(csv.DictReader(f))
+    return read_csv(path) if path.is_file() else []
 
 
 def prefix_rows(path: Path, fork_step: int) -> list[tuple]:

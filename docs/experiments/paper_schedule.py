@@ -12,6 +12,22 @@ FIGURE.png and FIGURE.pdf.
     python docs/experiments/paper_schedule.py results/paper-schedule-hopper 2000000 \
         docs/experiments/paper-schedule-hopper-2m
     python docs/experiments/paper_schedule.py results/paper-schedule-walker2d 1000000
+
+The score's two pre-registered primary tests (AdaRL − control paired t, AdaRL − SAC Welch) get
+Holm's adjustment over the two and the decision (detected when the adjusted p < 0.05).
+
+`export SWEEP ROWS` copies each unit's raw rows (eval.csv, episodes.csv, train.csv,
+truncations.csv and, once evaluated, the `paper` suite's episode table and summary; never
+checkpoints) gzipped into ROWS/<task>/<unit>/seeds-*/, the run folders' own layout, so that
+everything above also runs on ROWS, from the repository alone. `robustness DIR` (a sweep or
+exported rows) is the pre-registered robustness test at 3M (paper-schedule-walker2d.md): per
+seed the worst-case and the average return over the `paper` suite's grid, recomputed from the
+suite's episode table, and AdaRL − SAC on each, Welch, Holm over the two, with the inverted
+permutation interval and the detectable difference over the SD's interval beside each.
+
+    python docs/experiments/paper_schedule.py export results/paper-schedule-walker2d \
+        docs/experiments/paper-schedule-walker2d/rows
+    python docs/experiments/paper_schedule.py robustness docs/experiments/paper-schedule-walker2d/rows
 """
 
 from __future__ import annotations
@@ -21,16 +37,52 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import scipy.stats
 from matplotlib.figure import Figure
 from mechanism import LAYERS, TARGET, paired_line, prefix_rows, rows
+from table1_ant_humanoid import _row, compare, gzip_copy
 
 from adarl import stats
 from adarl.report import figures
-from adarl.results.collect import last_evaluations, read_table
+from adarl.results.collect import last_evaluations
+from adarl.runs.logs import TEXT_COLUMNS
 
 ARMS = {"AdaRL": "adarl_rank_rule-cumulative", "control": "adarl-control-eq5", "SAC": "sac"}
 LAST_K = 5  # the report's default score: the mean of the last 5 evaluations
+SUITE = "paper"  # the robustness grid: torso × foot length, 10 × 10 points
+EXPORTED = (
+    "eval.csv",
+    "episodes.csv",
+    "train.csv",
+    "truncations.csv",
+    f"evaluations/suite-{SUITE}.csv",
+    f"suites/{SUITE}.csv",
+)
+
+
+def export(sweep: Path, rows_dir: Path) -> list[Path]:
+    """Copy the raw rows (`EXPORTED`) of every unit of `sweep` (task/unit/seeds-*/) to
+    `rows_dir` in the same layout, each file gzipped (`NAME.gz`, no timestamp inside)."""
+    written = []
+    for unit in sorted(sweep.glob("*/*/seeds-*")):
+        for name in EXPORTED:
+            source = unit / name
+            if not source.is_file():
+                continue
+            target = rows_dir / unit.relative_to(sweep) / f"{name}.gz"
+            gzip_copy(source, target)
+            written.append(target)
+    return written
+
+
+def table(path: Path) -> pd.DataFrame:
+    """A run CSV (`path`, or `path.gz` as exported) as a DataFrame, each column but the text
+    ones as numbers."""
+    frame = pd.DataFrame(rows(path))
+    for column in frame.columns.difference(sorted(TEXT_COLUMNS)):
+        frame[column] = pd.to_numeric(frame[column])
+    return frame
 
 
 def scores_at(
@@ -40,7 +92,9 @@ def scores_at(
     `milestone`, and the mean episode length of those evaluations (what the policies did: 1,000
     is the time limit); the newest evaluated step instead when the run has not reached the
     milestone."""
-    log = read_table(run_dir / "eval.csv")
+    log = table(run_dir / "eval.csv")
+    if log.empty:
+        return 0
     log = log[log["dynamics"] == "nominal"]
     newest = int(log["step"].max()) if len(log) else 0
     if newest < milestone:
@@ -94,7 +148,9 @@ def seed_curves(units: dict[str, list[Path]], milestone: int, cuts: list[int]) -
     curves = {}
     for arm, dirs in units.items():
         for run_dir in dirs:
-            log = read_table(run_dir / "eval.csv")
+            log = table(run_dir / "eval.csv")
+            if log.empty:
+                continue
             log = log[(log["dynamics"] == "nominal") & (log["step"] <= milestone)]
             for seed, seed_log in log.groupby("seed"):
                 curves.setdefault(int(seed), {})[arm] = seed_log.groupby("step")["return"].mean()
@@ -133,16 +189,39 @@ def comparisons(
         if len(score[arm]) > 1
     ]
     print(f"- {what}, mean ± SD over seeds (mean episode length): " + ", ".join(arms))
-
-    def paired(arm: str) -> tuple[np.ndarray, np.ndarray]:
-        both = sorted(set(score["AdaRL"]) & set(score[arm]))
-        return np.array([score["AdaRL"][s] for s in both]), np.array([score[arm][s] for s in both])
-
     if score["AdaRL"] and score["control"]:
         print(paired_line(what, score["AdaRL"], score["control"]))
-        print(paired_t_line(*paired("control")))
+        print(paired_t_line(*against(score, "control")))
     if score["AdaRL"] and score["SAC"]:
-        print(welch_line(what, *paired("SAC")))
+        print(welch_line(what, *against(score, "SAC")))
+
+
+def against(score: dict[str, dict[int, float]], arm: str) -> tuple[np.ndarray, np.ndarray]:
+    """AdaRL's and `arm`'s scores on the seeds both have, in seed order."""
+    both = sorted(set(score["AdaRL"]) & set(score[arm]))
+    return np.array([score["AdaRL"][s] for s in both]), np.array([score[arm][s] for s in both])
+
+
+def primary_line(score: dict[str, dict[int, float]]) -> str:
+    """The decision of the two pre-registered primary tests of the score: AdaRL − control
+    (paired t) and AdaRL − SAC (Welch), two-sided, Holm over the two; detected where the
+    adjusted p < 0.05."""
+    p = [
+        float(scipy.stats.ttest_rel(*against(score, "control")).pvalue),
+        float(scipy.stats.ttest_ind(*against(score, "SAC"), equal_var=False).pvalue),
+    ]
+    if not np.all(np.isfinite(p)):  # a t statistic of 0/0: every difference the same
+        return (
+            f"- Primary tests: no Holm adjustment, a p-value is undefined ({p[0]:.3g}, {p[1]:.3g})"
+        )
+    cells = [
+        f"{what} p = {raw:.3g}, Holm {adjusted:.3g}: "
+        + ("**detected**" if adjusted < 0.05 else "not detected")
+        for what, raw, adjusted in zip(
+            ("AdaRL − control (paired t)", "AdaRL − SAC (Welch)"), p, stats.holm(p), strict=True
+        )
+    ]
+    return "- Primary tests, Holm over the two: " + "; ".join(cells)
 
 
 def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
@@ -204,6 +283,8 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
         print(f"| {s} | " + " | ".join(cells) + " |")
     print()
     comparisons(f"score at {milestone:,}", score, length)
+    if all(len(score[arm]) > 1 for arm in ARMS):
+        print(primary_line(score))
     print(f"\nThe evaluation at step {milestone:,} alone:\n")
     comparisons(f"evaluation at {milestone:,}", final, final_length)
     if figure is not None:
@@ -212,8 +293,83 @@ def main(sweep: Path, milestone: int, figure: Path | None = None) -> None:
             print(f"\nwrote {path}")
 
 
+def robustness_scores(run_dir: Path) -> dict[int, dict]:
+    """Per seed, from the `paper` suite's episode table (one row per episode at each grid point):
+    the worst-case return (the lowest point mean) and the average return (the mean of the point
+    means), as M2TD3 and RRLS report them, with the points, the fewest episodes at a point and
+    the step of the policy evaluated."""
+    returns = collections.defaultdict(lambda: collections.defaultdict(list))  # seed, point
+    steps = collections.defaultdict(set)
+    for r in rows(run_dir / f"evaluations/suite-{SUITE}.csv"):
+        returns[int(r["seed"])][r["dynamics"]].append(float(r["return"]))
+        steps[int(r["seed"])].add(int(float(r["step"])))
+    out = {}
+    for seed, by_point in sorted(returns.items()):
+        means = [float(np.mean(v)) for v in by_point.values()]
+        out[seed] = {
+            "worst": min(means),
+            "average": float(np.mean(means)),
+            "points": len(means),
+            "episodes": min(len(v) for v in by_point.values()),
+            "step": max(steps[seed]),
+        }
+    return out
+
+
+def robustness(root: Path) -> list[str]:
+    """The robustness report at 3M (paper-schedule-walker2d.md, "Robustness at 3M")."""
+    got = {
+        arm: {
+            s: v
+            for d in sorted(root.glob(f"*/{ARMS[arm]}/seeds-*"))
+            for s, v in robustness_scores(d).items()
+        }  # fmt: skip
+        for arm in ("AdaRL", "SAC")
+    }
+    lines = [f"### Robustness on the `{SUITE}` suite (worst-case and average return per seed)", ""]
+    missing = [arm for arm, seeds in got.items() if len(seeds) < 2]
+    if missing:
+        return lines + [f"Not computed: no `{SUITE}` suite evaluation of {', '.join(missing)} (2 seeds or more) under {root}.", ""]  # fmt: skip
+    lines += ["| arm | seed | policy step | points × episodes | worst-case | average |"]
+    lines += ["| --- | ---: | ---: | ---: | ---: | ---: |"]
+    for arm, seeds in got.items():
+        for seed, v in seeds.items():
+            lines.append(
+                f"| {arm} | {seed} | {v['step']:,} | {v['points']} × {v['episodes']} "
+                f"| {v['worst']:,.0f} | {v['average']:,.0f} |"
+            )
+    lines += ["", "AdaRL − SAC, Welch, Holm over the two scores; detected where the Holm p < 0.05:", ""]  # fmt: skip
+    lines += [
+        "| score | difference | Welch 95% | Welch p | Holm p | permutation 95% | pooled SD "
+        "| detectable at 80% (range) |",
+        "| --- | ---: | --- | ---: | ---: | --- | ---: | ---: |",
+    ]
+    results = {
+        score: compare(
+            *(np.array([v[score] for v in got[arm].values()]) for arm in ("AdaRL", "SAC"))
+        )  # fmt: skip
+        for score in ("worst", "average")
+    }
+    adjusted = stats.holm([r["p"] for r in results.values()])
+    for (score, r), a in zip(results.items(), adjusted, strict=True):
+        decision = "**detected**" if a < 0.05 else "not detected"
+        lines.append(_row(f"{score} ({decision})", r, f"{a:.3f}"))
+    return lines + [""]
+
+
+USAGE = (
+    "usage: paper_schedule.py SWEEP_DIR STEP [FIGURE] | export SWEEP_DIR ROWS_DIR | robustness DIR"
+)
+
 if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4) or not sys.argv[2].isdigit():
-        print("usage: paper_schedule.py SWEEP_DIR STEP [FIGURE]", file=sys.stderr)
+    argv = sys.argv[1:]
+    if argv[:1] == ["export"] and len(argv) == 3:
+        written = export(Path(argv[1]), Path(argv[2]))
+        print(f"wrote {len(written)} files under {argv[2]}")
+    elif argv[:1] == ["robustness"] and len(argv) == 2:
+        print("\n".join(robustness(Path(argv[1]))))
+    elif len(argv) in (2, 3) and argv[1].isdigit():
+        main(Path(argv[0]), int(argv[1]), Path(argv[2]) if len(argv) > 2 else None)
+    else:
+        print(USAGE, file=sys.stderr)
         sys.exit(2)
-    main(Path(sys.argv[1]), int(sys.argv[2]), Path(sys.argv[3]) if len(sys.argv) > 3 else None)

@@ -51,13 +51,19 @@ def export(sweep: Path, rows: Path = ROWS) -> list[Path]:
             if not source.is_file():
                 continue
             target = rows / task / method / f"{unit.name}-{name}.gz"
-            target.parent.mkdir(parents=True, exist_ok=True)
-            tmp = target.with_suffix(".tmp")
-            with source.open("rb") as f, gzip.GzipFile(tmp, "wb", mtime=0) as g:
-                shutil.copyfileobj(f, g)
-            tmp.replace(target)
+            gzip_copy(source, target)
             written.append(target)
     return written
+
+
+def gzip_copy(source: Path, target: Path) -> None:
+    """`source` gzipped into `target` (no timestamp inside: the same rows, the same bytes),
+    atomically; its folder is made."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    partial = target.with_suffix(".tmp")
+    with source.open("rb") as f, gzip.GzipFile(partial, "wb", mtime=0) as g:
+        shutil.copyfileobj(f, g)
+    partial.replace(target)
 
 
 def _read(path: Path) -> list[dict]:
