@@ -41,7 +41,7 @@ import pandas as pd
 import scipy.stats
 from matplotlib.figure import Figure
 from mechanism import LAYERS, TARGET, paired_line, prefix_rows, rows
-from table1_ant_humanoid import _row, compare, gzip_copy
+from table1_ant_humanoid import compare, comparison_row, gzip_copy
 
 from adarl import stats
 from adarl.report import figures
@@ -353,7 +353,7 @@ def robustness(root: Path) -> list[str]:
     adjusted = stats.holm([r["p"] for r in results.values()])
     for (score, r), a in zip(results.items(), adjusted, strict=True):
         decision = "**detected**" if a < 0.05 else "not detected"
-        lines.append(_row(f"{score} ({decision})", r, f"{a:.3f}"))
+        lines.append(comparison_row(f"{score} ({decision})", r, f"{a:.3f}"))
     return lines + [""]
 
 

@@ -126,7 +126,8 @@ def _num(x: float) -> str:
     return "∞" if np.isinf(x) else f"{x:+,.0f}"
 
 
-def _row(name: str, c: dict, extra: str) -> str:
+def comparison_row(name: str, c: dict, extra: str) -> str:
+    """A table row of `compare`'s result; `extra` fills the Holm column."""
     lo, hi = c["welch"]
     perm = c["permutation"]
     r_lo, r_hi = c["range"]
@@ -175,7 +176,7 @@ def report(data: dict) -> list[str]:
         lines += head
         for t, a in zip(TASKS, adjusted):
             decision = "**detected**" if a < 0.05 else "not detected"
-            lines.append(_row(f"{t}: adarl − sac ({decision})", results[t], f"{a:.3f}"))
+            lines.append(comparison_row(f"{t}: adarl − sac ({decision})", results[t], f"{a:.3f}"))
         lines.append("")
 
     lines += ["### Exploratory, uncorrected: AdaRL − each baseline", ""] + head
@@ -190,7 +191,7 @@ def report(data: dict) -> list[str]:
             if method.startswith("sac-parseval") and method != best:
                 continue
             name = label(method) + (" (best of 3, chosen after the data)" if method == best else "")
-            lines.append(_row(f"{task}: adarl − {name}", compare(arm(task, ADARL), arm(task, method)), "—"))  # fmt: skip
+            lines.append(comparison_row(f"{task}: adarl − {name}", compare(arm(task, ADARL), arm(task, method)), "—"))  # fmt: skip
     lines.append("")
 
     lines += ["### Ranks the energy rule kept (AdaRL), per cut: min–max over seeds", ""]
