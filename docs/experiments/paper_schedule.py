@@ -361,15 +361,31 @@ USAGE = (
     "usage: paper_schedule.py SWEEP_DIR STEP [FIGURE] | export SWEEP_DIR ROWS_DIR | robustness DIR"
 )
 
-if __name__ == "__main__":
-    argv = sys.argv[1:]
-    if argv[:1] == ["export"] and len(argv) == 3:
-        written = export(Path(argv[1]), Path(argv[2]))
-        print(f"wrote {len(written)} files under {argv[2]}")
-    elif argv[:1] == ["robustness"] and len(argv) == 2:
-        print("\n".join(robustness(Path(argv[1]))))
-    elif len(argv) in (2, 3) and argv[1].isdigit():
-        main(Path(argv[0]), int(argv[1]), Path(argv[2]) if len(argv) > 2 else None)
+
+def cli(argv: list[str]) -> int:
+    if argv[:1] in (["-h"], ["--help"]):
+        print(__doc__)
+        return 0
+    command = argv[0] if argv[:1] in (["export"], ["robustness"]) else "milestone"
+    if command == "milestone":
+        well_formed = len(argv) in (2, 3) and argv[1].isdigit()
     else:
+        well_formed = len(argv) == {"export": 3, "robustness": 2}[command]
+    if not well_formed:
         print(USAGE, file=sys.stderr)
-        sys.exit(2)
+        return 2
+    source = Path(argv[0] if command == "milestone" else argv[1])
+    if not source.is_dir():
+        print(f"paper_schedule.py: {source} is not a folder (a sweep's or exported rows)", file=sys.stderr)  # fmt: skip
+        return 2
+    if command == "export":
+        print(f"wrote {len(export(source, Path(argv[2])))} files under {argv[2]}")
+    elif command == "robustness":
+        print("\n".join(robustness(source)))
+    else:
+        main(source, int(argv[1]), Path(argv[2]) if len(argv) > 2 else None)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(cli(sys.argv[1:]))

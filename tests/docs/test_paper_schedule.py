@@ -169,3 +169,16 @@ def test_robustness_recomputes_worst_and_average_from_the_episodes(script, sweep
 def test_robustness_waits_for_both_arms(script, sweep):
     _suite(sweep / "walker2d/sac/seeds-0-4", {0: [[1.0]], 1: [[2.0]]})
     assert any(line.startswith("Not computed: no `paper` suite evaluation of AdaRL") for line in script.robustness(sweep))  # fmt: skip
+
+
+def test_command_line(script, sweep, tmp_path, capsys):
+    assert script.cli(["--help"]) == 0 and "robustness DIR" in capsys.readouterr().out
+    for argv in (["export", str(tmp_path / "nope"), str(tmp_path / "rows")], [str(tmp_path / "nope"), "100"]):  # fmt: skip
+        assert script.cli(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "nope is not a folder" in err
+    for argv in ([], ["export", str(sweep)], [str(sweep), "1e6"], ["robustness"]):
+        assert script.cli(argv) == 2 and capsys.readouterr().err.startswith("usage:")
+    assert script.cli(["export", str(sweep), str(tmp_path / "rows")]) == 0
+    # AdaRL and the control: 4 files each; SAC has no truncations.csv
+    assert capsys.readouterr().out == f"wrote 11 files under {tmp_path / 'rows'}\n"
