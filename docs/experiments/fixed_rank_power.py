@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import table1_ant_humanoid as table1
-from table1_ant_humanoid import _read, export, seed_scores
+from table1_ant_humanoid import _read, export, folder, seed_scores
 
 from adarl import stats
 
@@ -198,11 +198,11 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 0
     if argv[:1] == ["export"] and len(argv) == 2:
-        written = export(Path(argv[1]), ROWS)
+        written = export(folder(argv[1]), ROWS)
         print(f"wrote {len(written)} files under {ROWS}")
         return 0
     if argv[:1] == ["report"] and len(argv) in (1, 2):
-        print("\n".join(report(load(Path(argv[1]) if len(argv) == 2 else ROWS))))
+        print("\n".join(report(load(folder(argv[1]) if len(argv) == 2 else ROWS))))
         return 0
     if argv == ["power"]:
         print("\n".join(power_table()))

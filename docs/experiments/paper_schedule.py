@@ -41,7 +41,7 @@ import pandas as pd
 import scipy.stats
 from matplotlib.figure import Figure
 from mechanism import LAYERS, TARGET, paired_line, prefix_rows, rows
-from table1_ant_humanoid import compare, comparison_row, gzip_copy
+from table1_ant_humanoid import compare, comparison_row, folder, gzip_copy
 
 from adarl import stats
 from adarl.report import figures
@@ -374,10 +374,7 @@ def cli(argv: list[str]) -> int:
     if not well_formed:
         print(USAGE, file=sys.stderr)
         return 2
-    source = Path(argv[0] if command == "milestone" else argv[1])
-    if not source.is_dir():
-        print(f"paper_schedule.py: {source} is not a folder (a sweep's or exported rows)", file=sys.stderr)  # fmt: skip
-        return 2
+    source = folder(argv[0] if command == "milestone" else argv[1])
     if command == "export":
         print(f"wrote {len(export(source, Path(argv[2])))} files under {argv[2]}")
     elif command == "robustness":

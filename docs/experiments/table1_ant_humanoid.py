@@ -210,16 +210,26 @@ def report(data: dict) -> list[str]:
     return lines
 
 
+def folder(argument: str) -> Path:
+    """The folder a command-line argument names (a sweep's, or exported rows); where there is
+    none, a one-line error and exit 2."""
+    path = Path(argument)
+    if not path.is_dir():
+        print(f"error: {argument} is not a folder (a sweep's, or exported rows)", file=sys.stderr)
+        raise SystemExit(2)
+    return path
+
+
 def main(argv: list[str]) -> int:
     if argv[:1] in (["-h"], ["--help"]):
         print(__doc__)
         return 0
     if argv[:1] == ["export"] and len(argv) == 2:
-        written = export(Path(argv[1]))
+        written = export(folder(argv[1]))
         print(f"wrote {len(written)} files under {ROWS}")
         return 0
     if argv[:1] == ["report"] and len(argv) in (1, 2):
-        print("\n".join(report(load(Path(argv[1]) if len(argv) == 2 else ROWS))))
+        print("\n".join(report(load(folder(argv[1]) if len(argv) == 2 else ROWS))))
         return 0
     print("usage: table1_ant_humanoid.py export SWEEP | report [ROWS]", file=sys.stderr)
     return 2

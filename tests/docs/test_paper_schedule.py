@@ -174,9 +174,10 @@ def test_robustness_waits_for_both_arms(script, sweep):
 def test_command_line(script, sweep, tmp_path, capsys):
     assert script.cli(["--help"]) == 0 and "robustness DIR" in capsys.readouterr().out
     for argv in (["export", str(tmp_path / "nope"), str(tmp_path / "rows")], [str(tmp_path / "nope"), "100"]):  # fmt: skip
-        assert script.cli(argv) == 2
+        with pytest.raises(SystemExit) as stopped:
+            script.cli(argv)
         err = capsys.readouterr().err
-        assert err.count("\n") == 1 and "nope is not a folder" in err
+        assert stopped.value.code == 2 and err.count("\n") == 1 and "nope is not a folder" in err
     for argv in ([], ["export", str(sweep)], [str(sweep), "1e6"], ["robustness"]):
         assert script.cli(argv) == 2 and capsys.readouterr().err.startswith("usage:")
     assert script.cli(["export", str(sweep), str(tmp_path / "rows")]) == 0
