@@ -19,4 +19,18 @@ for preset in table1-ant-humanoid paper-schedule-walker2d fixed-rank-power; do
   echo "== $(date -u +%FT%TZ) $preset exited $code"
   # stopped (Ctrl-C, SIGTERM: 130) or refused (bad input: 2): go no further
   if [ "$code" -eq 130 ] || [ "$code" -eq 2 ]; then exit "$code"; fi
+  # issue 34 §3.4 on Walker2d's 3M policies (paper-schedule-walker2d.md, "Robustness at 3M"),
+  # once every unit is done, before a new machine can lose them. A stopped evaluation starts
+  # again at the next resume; a finished one (both suites/paper.csv written) is not repeated.
+  W=$R/paper-schedule-walker2d/walker2d
+  if [ "$preset" = paper-schedule-walker2d ] && [ "$code" -eq 0 ] &&
+    { [ ! -f "$W/adarl_rank_rule-cumulative/seeds-0-4/suites/paper.csv" ] ||
+      [ ! -f "$W/sac/seeds-0-4/suites/paper.csv" ]; }; then
+    echo "== $(date -u +%FT%TZ) robustness at 3M (paper suite, 5 episodes a point)"
+    $PY -m adarl.cli.main evaluate "$W/adarl_rank_rule-cumulative/seeds-0-4" "$W/sac/seeds-0-4" \
+      --suite paper --episodes 5 --workers 2 --no-progress
+    code=$?
+    echo "== $(date -u +%FT%TZ) robustness exited $code"
+    if [ "$code" -eq 130 ] || [ "$code" -eq 143 ]; then exit "$code"; fi  # stopped
+  fi
 done

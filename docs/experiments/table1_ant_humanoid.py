@@ -123,7 +123,7 @@ def compare(x: np.ndarray, y: np.ndarray) -> dict:
 
 
 def _num(x: float) -> str:
-    return "∞" if np.isinf(x) else f"{x:+,.0f}"
+    return ("+∞" if x > 0 else "−∞") if np.isinf(x) else f"{x:+,.0f}"
 
 
 def comparison_row(name: str, c: dict, extra: str) -> str:

@@ -130,28 +130,34 @@ def test_the_primaries_are_holm_adjusted_over_the_two(script, sweep):
     assert [part.rsplit(": ", 1)[1] for part in line.split("; ")] == expected
 
 
+def _summary(unit: Path, worst: np.ndarray, average: np.ndarray) -> None:
+    """suites/paper.csv as adarl writes it (6 significant digits)."""
+    rows = [["paper", 3_000_000, s, 4, 3, f"{w:.6g}", f"{a:.6g}", "p0"] for s, (w, a) in enumerate(zip(worst, average))]  # fmt: skip
+    _write(unit / "suites/paper.csv", ["suite", "step", "seed", "points", "episodes", "worst", "average", "worst_point"], rows)  # fmt: skip
+
+
 def test_robustness_recomputes_worst_and_average_from_the_episodes(script, sweep, tmp_path):
     rng = np.random.default_rng(0)
-    tables = {}
+    by_hand = {}
     for name, level in (("adarl_rank_rule-cumulative", 1000.0), ("sac", 600.0)):
-        tables[name] = {
+        table = {
             seed: [
                 [level + 50 * seed + 10 * i + noise for noise in rng.normal(0, 30, size=3)]
                 for i in range(4)
             ]  # fmt: skip
             for seed in range(5)
         }
-        _suite(sweep / "walker2d" / name / "seeds-0-4", tables[name])
+        unit = sweep / "walker2d" / name / "seeds-0-4"
+        _suite(unit, table)
+        means = [[np.mean(episodes) for episodes in points] for points in table.values()]
+        by_hand[name] = np.array([min(m) for m in means]), np.array([np.mean(m) for m in means])
+        _summary(unit, *by_hand[name])
     rows = tmp_path / "rows"
     script.export(sweep, rows)
     lines = script.robustness(rows)
     assert lines == script.robustness(sweep)
-
-    def by_hand(name):
-        means = {s: [np.mean(e) for e in points] for s, points in tables[name].items()}
-        return np.array([min(m) for m in means.values()]), np.array([np.mean(m) for m in means.values()])  # fmt: skip
-
-    (a_worst, a_avg), (s_worst, s_avg) = by_hand("adarl_rank_rule-cumulative"), by_hand("sac")
+    assert "adarl's own summaries (suites/paper.csv) agree: True." in "\n".join(lines)
+    (a_worst, a_avg), (s_worst, s_avg) = by_hand["adarl_rank_rule-cumulative"], by_hand["sac"]
     assert f"| AdaRL | 3 | 3,000,000 | 4 × 3 | {a_worst[3]:,.0f} | {a_avg[3]:,.0f} |" in lines
     p = [scipy.stats.ttest_ind(a_worst, s_worst, equal_var=False).pvalue,
          scipy.stats.ttest_ind(a_avg, s_avg, equal_var=False).pvalue]  # fmt: skip
@@ -164,6 +170,15 @@ def test_robustness_recomputes_worst_and_average_from_the_episodes(script, sweep
         cells = [c.strip() for c in row.split("|")[1:-1]]
         assert cells[1] == f"{x.mean() - y.mean():+,.0f}"
         assert (cells[3], cells[4]) == (f"{raw:.3f}", f"{holm:.3f}")
+
+
+def test_robustness_says_when_adarls_summary_disagrees(script, sweep):
+    for name in ("adarl_rank_rule-cumulative", "sac"):
+        _suite(sweep / "walker2d" / name / "seeds-0-4", {0: [[10.0, 20.0], [40.0]], 1: [[5.0]]})
+        _summary(sweep / "walker2d" / name / "seeds-0-4", np.array([15.0, 5.0]), np.array([27.5, 5.0]))  # fmt: skip
+    assert "agree: True." in "\n".join(script.robustness(sweep))
+    _summary(sweep / "walker2d/sac/seeds-0-4", np.array([15.0, 5.0]), np.array([27.6, 5.0]))
+    assert "agree: False." in "\n".join(script.robustness(sweep))
 
 
 def test_robustness_waits_for_both_arms(script, sweep):
