@@ -36,6 +36,7 @@ ROWS = HERE / "table1-ant-humanoid" / "rows"
 FILES = ("eval.csv", "truncations.csv", "episodes.csv")
 BUDGET = 300_000
 LAST_K = 5
+TIME_LIMIT = 1000  # steps of an Ant or Humanoid episode that neither falls nor flips
 TASKS = ("ant", "humanoid")
 ACTION_DIM = {"ant": 8, "humanoid": 17}  # 2·d_a + 1: 17 and 35
 ADARL, SAC = "adarl", "sac"
@@ -86,19 +87,40 @@ def seed_scores(eval_rows: list[dict], k: int = LAST_K) -> tuple[dict[int, float
     return scores, last
 
 
+def seed_survival(eval_rows: list[dict], k: int = LAST_K) -> dict[int, bool]:
+    """Per seed, whether every episode of its last k nominal evaluations lasted the time limit
+    (`TIME_LIMIT` steps): the policy neither fell nor flipped."""
+    lengths = defaultdict(lambda: defaultdict(list))  # seed -> step -> episode lengths
+    for r in eval_rows:
+        if r["dynamics"] == "nominal":
+            lengths[int(r["seed"])][int(r["step"])].append(int(float(r["length"])))
+    return {
+        seed: all(min(by_step[s]) >= TIME_LIMIT for s in sorted(by_step)[-k:])
+        for seed, by_step in lengths.items()
+    }
+
+
 def load(rows: Path = ROWS) -> dict:
-    """task -> method -> {"scores": {seed: score}, "last_step", "truncations": rows}."""
+    """task -> method -> {"scores": {seed: score}, "survived": {seed: bool}, "last_step",
+    "truncations": rows}."""
     out = defaultdict(dict)
     for method_dir in sorted(rows.glob("*/*")):
         task, method = method_dir.parts[-2], method_dir.parts[-1]
-        scores, last, truncations = {}, BUDGET, []
+        scores, survived, last, truncations = {}, {}, BUDGET, []
         for path in sorted(method_dir.glob("seeds-*-eval.csv.gz")):
-            s, step = seed_scores(_read(path))
+            evaluations = _read(path)
+            s, step = seed_scores(evaluations)
             scores |= s
+            survived |= seed_survival(evaluations)
             last = min(last, step)
         for path in sorted(method_dir.glob("seeds-*-truncations.csv.gz")):
             truncations += _read(path)
-        out[task][method] = {"scores": scores, "last_step": last, "truncations": truncations}
+        out[task][method] = {
+            "scores": scores,
+            "survived": survived,
+            "last_step": last,
+            "truncations": truncations,
+        }
     return out
 
 
@@ -178,6 +200,24 @@ def report(data: dict) -> list[str]:
             decision = "**detected**" if a < 0.05 else "not detected"
             lines.append(comparison_row(f"{t}: adarl − sac ({decision})", results[t], f"{a:.3f}"))
         lines.append("")
+
+    lines += [
+        f"### Descriptive: seeds whose every episode of the last {LAST_K} evaluations lasted "
+        f"{TIME_LIMIT:,} steps",
+        "",
+        "| task | method | seeds that lasted | AdaRL against it: Fisher p, Boschloo p |",
+        "| --- | --- | ---: | ---: |",
+    ]
+    for task in TASKS:
+        for method in sorted(m for m in data.get(task, {}) if finished(task, m)):
+            kept = data[task][method]["survived"]
+            cell = "—"
+            if method != ADARL and finished(task, ADARL):
+                ours = data[task][ADARL]["survived"]
+                test = stats.counts_exact_test(sum(ours.values()), len(ours), sum(kept.values()), len(kept))  # fmt: skip
+                cell = f"{test.fisher_p:.3f}, {test.boschloo_p:.3f}"
+            lines.append(f"| {task} | {label(method)} | {sum(kept.values())}/{len(kept)} | {cell} |")  # fmt: skip
+    lines.append("")
 
     lines += ["### Exploratory, uncorrected: AdaRL − each baseline", ""] + head
     for task in TASKS:

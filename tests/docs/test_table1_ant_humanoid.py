@@ -19,8 +19,9 @@ def script():
     return module
 
 
-def _unit(root, task, method, returns, last_step=300_000, truncations=None):
-    """A unit whose seed s returns returns[s] + step/1e5 at every nominal evaluation."""
+def _unit(root, task, method, returns, last_step=300_000, truncations=None, fell=()):
+    """A unit whose seed s returns returns[s] + step/1e5 at every nominal evaluation; the seeds
+    in `fell` end one episode of their last evaluation at step 300, the others last 1,000."""
     unit = root / task / method / "seeds-0-4"
     unit.mkdir(parents=True)
     with (unit / "eval.csv").open("w", newline="") as f:
@@ -29,7 +30,8 @@ def _unit(root, task, method, returns, last_step=300_000, truncations=None):
         for step in range(10_000, last_step + 1, 10_000):
             for seed, r in enumerate(returns):
                 for episode, noise in enumerate((-1.0, 1.0)):  # mean over episodes: r
-                    w.writerow([step, seed, "nominal", episode, r + step / 1e5 + noise, 1000])
+                    length = 300 if seed in fell and step == last_step and episode else 1000
+                    w.writerow([step, seed, "nominal", episode, r + step / 1e5 + noise, length])
                 w.writerow([step, seed, "perturbed", 0, -1e6, 10])  # not nominal: ignored
     if truncations:
         with (unit / "truncations.csv").open("w", newline="") as f:
@@ -105,3 +107,15 @@ def test_a_folder_that_is_not_there_is_one_line_and_exit_2(script, tmp_path, cap
         script.main([command, str(tmp_path / "nope")])
     err = capsys.readouterr().err
     assert stopped.value.code == 2 and err == f"error: {tmp_path / 'nope'} is not a folder (a sweep's, or exported rows)\n"  # fmt: skip
+
+
+def test_survival_counts_with_fishers_test(script, tmp_path):
+    sweep = tmp_path / "sweep"
+    _unit(sweep, "ant", "adarl", [2000.0, 2100.0, 1900.0, 2050.0, 1950.0])
+    _unit(sweep, "ant", "sac", [1000.0, 1100.0, 900.0, 1050.0, 950.0], fell=(0, 3))
+    script.export(sweep, tmp_path / "rows")
+    lines = script.report(script.load(tmp_path / "rows"))
+    # 5 of 5 against 3 of 5 (margins 8 and 2 of 10): tables with AdaRL at 5, 4, 3 survivors have
+    # probabilities 56, 140, 56 out of C(10, 5) = 252; two-sided Fisher p = (56 + 56) / 252
+    assert f"| ant | sac | 3/5 | {112 / 252:.3f}, " in "\n".join(lines)
+    assert "| ant | adarl | 5/5 | — |" in lines
