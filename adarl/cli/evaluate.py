@@ -161,7 +161,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     from adarl.evaluation import suites
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
-    from adarl.runs.layout import EVALUATIONS_DIR, SUITES_DIR
+    from adarl.runs.layout import EVALUATIONS_DIR
 
     mixed = [
         flag
@@ -194,7 +194,8 @@ def run_suite_command(args: argparse.Namespace) -> int:
     stem = suites.file_name(args.suite, args.checkpoint)
     for run_ in runs:
         check_writable_file(run_.path / EVALUATIONS_DIR / f"{stem}.csv")
-        check_writable_file(run_.path / SUITES_DIR / f"{stem.removeprefix('suite-')}.csv")
+        check_writable_file(suites.summary_path(run_, args.suite, args.checkpoint))
+        suites.check_same_grid(run_, args.suite, args.episodes, args.points, args.checkpoint)
     tables = suites.run_suite(
         runs,
         args.suite,

@@ -288,6 +288,35 @@ def run_suite(
     return tables(runs, units, workers, backend, address, progress, desc=f"suite {name}")
 
 
+def summary_path(run, name: str, checkpoint: int | None = None) -> Path:
+    """`RUN_DIR/suites/<name>.csv` (`…_step-N` for a checkpoint): a run's per-seed summary."""
+    return run.path / SUITES_DIR / f"{file_name(name, checkpoint).removeprefix('suite-')}.csv"
+
+
+def check_same_grid(
+    run, name: str, episodes: int | None = None, points: int | None = None, checkpoint=None
+) -> None:
+    """Refuse (one-line `UsageError`) an evaluation of suite `name` that would replace a stored
+    one made on another grid or with other episodes per point: a quick `--points 3` look must
+    not overwrite an hour's full grid. The same grid and episodes again replace it (a rerun); a
+    summary that cannot be read is replaced too."""
+    path = summary_path(run, name, checkpoint)
+    try:
+        stored = pd.read_csv(path)
+        have = (int(stored["points"].max()), int(stored["episodes"].min()))
+    except (OSError, ValueError, KeyError, pd.errors.ParserError):
+        return  # none there, or not a summary adarl can read
+    suite = get_suite(name, run.task, points)
+    want = (suite.size, suite.episodes if episodes is None else episodes)
+    if have != want:
+        raise UsageError(
+            f"{path} holds suite {name} on {have[0]} points x {have[1]} episodes, which this "
+            f"evaluation ({want[0]} x {want[1]}) would replace; move it and "
+            f"{EVALUATIONS_DIR}/{file_name(name, checkpoint)}.csv away first, or evaluate with "
+            "the same --points and --episodes"
+        )
+
+
 def write_suite(
     table: pd.DataFrame,
     run,
@@ -317,10 +346,10 @@ def write_suite(
     }
     episodes_path = run.path / EVALUATIONS_DIR / f"{stem}.csv"
     write_evaluation(table, episodes_path, spec, run, command, extra=extra)
-    summary_path = run.path / SUITES_DIR / f"{stem.removeprefix('suite-')}.csv"
+    summary_file = summary_path(run, name, checkpoint)
     summary = seed_summary(table, name)
-    atomic_write_text(summary_path, summary.to_csv(index=False, float_format="%.6g"))
-    return episodes_path, summary_path
+    atomic_write_text(summary_file, summary.to_csv(index=False, float_format="%.6g"))
+    return episodes_path, summary_file
 
 
 def format_summary(summary: pd.DataFrame) -> str:

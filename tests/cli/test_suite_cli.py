@@ -66,6 +66,21 @@ def test_points_gives_a_coarser_grid_over_the_same_ranges(tmp_path, capsys):
     assert "over 4 points and 1 seed(s)" in capsys.readouterr().out
 
 
+def test_another_grid_does_not_replace_a_stored_one(tmp_path, capsys):
+    run = write_run(tmp_path, "hopper", seeds=(0,))
+    argv = ["evaluate", str(run), "--suite", "paper", "--workers", "1", *FAST]
+    assert main([*argv, "--points", "2"]) == 0
+    stored = {p: p.read_bytes() for p in (run / "suites").iterdir()}
+    capsys.readouterr()
+    for other in (["--points", "3"], ["--points", "2", "--episodes", "2"], []):
+        assert main([*argv, *other]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1
+        assert f"{run}/suites/paper.csv holds suite paper on 4 points x 1 episodes" in err
+    assert {p: p.read_bytes() for p in (run / "suites").iterdir()} == stored
+    assert main([*argv, "--points", "2"]) == 0  # the same grid again: a rerun replaces it
+
+
 def _files(root):
     return sorted(p.relative_to(root) for p in root.rglob("*") if p.is_file())
 
