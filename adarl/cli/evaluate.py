@@ -195,7 +195,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     for run_ in runs:
         check_writable_file(run_.path / EVALUATIONS_DIR / f"{stem}.csv")
         check_writable_file(suites.summary_path(run_, args.suite, args.checkpoint))
-        suites.check_same_grid(run_, args.suite, args.episodes, args.points, args.checkpoint)
+        suites.check_not_smaller(run_, args.suite, args.episodes, args.points, args.checkpoint)
     tables = suites.run_suite(
         runs,
         args.suite,

@@ -66,19 +66,23 @@ def test_points_gives_a_coarser_grid_over_the_same_ranges(tmp_path, capsys):
     assert "over 4 points and 1 seed(s)" in capsys.readouterr().out
 
 
-def test_another_grid_does_not_replace_a_stored_one(tmp_path, capsys):
+def test_a_smaller_evaluation_does_not_replace_a_larger_one(tmp_path, capsys):
     run = write_run(tmp_path, "hopper", seeds=(0,))
     argv = ["evaluate", str(run), "--suite", "paper", "--workers", "1", *FAST]
-    assert main([*argv, "--points", "2"]) == 0
+    assert main([*argv, "--points", "2"]) == 0  # a coarse look: 4 points x 1 episode
+    assert main([*argv, "--points", "3"]) == 0  # a larger one replaces it
     stored = {p: p.read_bytes() for p in (run / "suites").iterdir()}
+    assert pd.read_csv(run / "suites/paper.csv")["points"].tolist() == [9]
     capsys.readouterr()
-    for other in (["--points", "3"], ["--points", "2", "--episodes", "2"], []):
-        assert main([*argv, *other]) == 2
+    for smaller in (["--points", "2"], ["--points", "2", "--episodes", "2"]):  # 4 and 8 < 9
+        assert main([*argv, *smaller]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1
-        assert f"{run}/suites/paper.csv holds suite paper on 4 points x 1 episodes" in err
+        assert (
+            f"{run}/suites/paper.csv holds suite paper on 9 points x 1 episodes, more than" in err
+        )
     assert {p: p.read_bytes() for p in (run / "suites").iterdir()} == stored
-    assert main([*argv, "--points", "2"]) == 0  # the same grid again: a rerun replaces it
+    assert main([*argv, "--points", "3"]) == 0  # the same again: a rerun replaces it
 
 
 def _files(root):
