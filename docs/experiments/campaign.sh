@@ -7,10 +7,11 @@
 # and, before a session ends, stop it without losing a step (each unit writes a checkpoint
 # where it stops, and the sweep exits 130, which ends this script too):
 #   kill -TERM -- -$(cat /work/main/results/campaign.pid)
+# (CAMPAIGN_CODE, CAMPAIGN_PYTHON and CAMPAIGN_RESULTS replace the three paths below in its test.)
 set -u
-cd /work/camp                      # python -m puts the working folder first: the frozen code runs
-PY=/work/main/.venv/bin/python
-R=/work/main/results
+cd "${CAMPAIGN_CODE:-/work/camp}"  # python -m puts the working folder first: the frozen code runs
+PY=${CAMPAIGN_PYTHON:-/work/main/.venv/bin/python}
+R=${CAMPAIGN_RESULTS:-/work/main/results}
 mkdir -p "$R"
 for preset in table1-ant-humanoid paper-schedule-walker2d fixed-rank-power; do
   echo "== $(date -u +%FT%TZ) $preset"
