@@ -294,7 +294,11 @@ def summary_path(run, name: str, checkpoint: int | None = None) -> Path:
 
 
 def check_not_smaller(
-    run, name: str, episodes: int | None = None, points: int | None = None, checkpoint=None
+    run,
+    name: str,
+    episodes: int | None = None,
+    points: int | None = None,
+    checkpoint: int | None = None,
 ) -> None:
     """Refuse (one-line `UsageError`) an evaluation of suite `name` that would replace a stored
     one of more episodes in all (points × episodes per point): a quick `--points 3` look must
