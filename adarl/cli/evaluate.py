@@ -109,11 +109,13 @@ def command_line(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from adarl.evaluation.evaluate import (
         EvalSpec,
+        check_not_smaller,
         default_output,
-        evaluate_runs,
+        plan,
         summarise,
         write_evaluation,
     )
+    from adarl.evaluation.evaluate import tables as evaluate_tables
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
 
@@ -140,10 +142,13 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--out names one CSV but {len(runs)} runs were found; leave it out")
         if Path(args.out).is_dir():
             raise UsageError(f"--out {args.out} is a folder; give a .csv file name")
-    for run_ in runs:  # before evaluating, which takes long
-        check_writable_file(Path(args.out) if args.out else default_output(run_, spec))
+    units = plan(runs, spec)  # every check, before evaluating, which takes long
+    for index, run_ in enumerate(runs):
+        path = Path(args.out) if args.out else default_output(run_, spec)
+        check_writable_file(path)
+        check_not_smaller(path, sum(u.episodes for u in units if u.run_index == index))
     command = command_line(args)
-    tables = evaluate_runs(runs, spec, workers=args.workers)
+    tables = evaluate_tables(runs, units, workers=args.workers)
     for run_, table in zip(runs, tables):
         path = Path(args.out) if args.out else default_output(run_, spec)
         write_evaluation(table, path, spec, run_, command)
@@ -159,6 +164,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from adarl.evaluation import suites
+    from adarl.evaluation.evaluate import check_not_smaller
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
     from adarl.runs.layout import EVALUATIONS_DIR
@@ -190,12 +196,13 @@ def run_suite_command(args: argparse.Namespace) -> int:
     options = dict(
         checkpoint=args.checkpoint, eval_seed=args.eval_seed, max_steps=args.max_episode_steps
     )
-    suites.plan_suite(runs, args.suite, args.episodes, args.points, **options)  # checks only
+    units = suites.plan_suite(runs, args.suite, args.episodes, args.points, **options)  # checks
     stem = suites.file_name(args.suite, args.checkpoint)
-    for run_ in runs:
-        check_writable_file(run_.path / EVALUATIONS_DIR / f"{stem}.csv")
+    for index, run_ in enumerate(runs):
+        episodes_path = run_.path / EVALUATIONS_DIR / f"{stem}.csv"
+        check_writable_file(episodes_path)
         check_writable_file(suites.summary_path(run_, args.suite, args.checkpoint))
-        suites.check_not_smaller(run_, args.suite, args.episodes, args.points, args.checkpoint)
+        check_not_smaller(episodes_path, sum(u.episodes for u in units if u.run_index == index))
     tables = suites.run_suite(
         runs,
         args.suite,

@@ -198,6 +198,23 @@ def default_output(run: Run, spec: EvalSpec) -> Path:
     return run.path / EVALUATIONS_DIR / f"{spec.name}.csv"
 
 
+def check_not_smaller(path: Path, episodes: int) -> None:
+    """Refuse (one-line `UsageError`) to replace the evaluation stored at `path` (one row per
+    episode) with one of fewer `episodes` in all: a quick look (fewer episodes, a coarser
+    suite grid) must not overwrite an hour's evaluation. One as large or larger replaces it (a
+    rerun, or the full grid after a coarse look)."""
+    try:
+        with open(path, "rb") as f:
+            stored = sum(1 for _ in f) - 1  # the header
+    except OSError:
+        return  # nothing stored
+    if episodes < stored:
+        raise UsageError(
+            f"{path} holds {stored:,} episodes, more than the {episodes:,} of this evaluation "
+            "that would replace it; move it and its .json away first"
+        )
+
+
 def write_evaluation(
     table: pd.DataFrame,
     path: Path,

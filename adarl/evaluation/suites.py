@@ -293,33 +293,6 @@ def summary_path(run, name: str, checkpoint: int | None = None) -> Path:
     return run.path / SUITES_DIR / f"{file_name(name, checkpoint).removeprefix('suite-')}.csv"
 
 
-def check_not_smaller(
-    run,
-    name: str,
-    episodes: int | None = None,
-    points: int | None = None,
-    checkpoint: int | None = None,
-) -> None:
-    """Refuse (one-line `UsageError`) an evaluation of suite `name` that would replace a stored
-    one of more episodes in all (points × episodes per point): a quick `--points 3` look must
-    not overwrite an hour's full grid. An evaluation as large or larger replaces it (a rerun, or
-    the full grid after a coarse look), as does one over a summary that cannot be read."""
-    path = summary_path(run, name, checkpoint)
-    try:
-        stored = pd.read_csv(path)
-        have = (int(stored["points"].max()), int(stored["episodes"].min()))
-    except (OSError, ValueError, KeyError, pd.errors.ParserError):
-        return  # none there, or not a summary adarl can read
-    suite = get_suite(name, run.task, points)
-    want = (suite.size, suite.episodes if episodes is None else episodes)
-    if want[0] * want[1] < have[0] * have[1]:
-        raise UsageError(
-            f"{path} holds suite {name} on {have[0]} points x {have[1]} episodes, more than "
-            f"this evaluation's {want[0]} x {want[1]} that would replace it; move it and "
-            f"{EVALUATIONS_DIR}/{file_name(name, checkpoint)}.csv away first"
-        )
-
-
 def write_suite(
     table: pd.DataFrame,
     run,

@@ -39,6 +39,20 @@ def test_sweep_is_written_into_the_run_folder(tmp_path, capsys):
     assert "nominal:torso_length=0.4,foot_length=0.39:" in out and "over 2 seed(s)" in out
 
 
+def test_fewer_episodes_do_not_replace_more(tmp_path, capsys):
+    run = write_run(tmp_path, "r", seeds=(0,))
+    argv = ["evaluate", str(run), "--dynamics", "fixed:torso_length=0.3", *FAST]
+    path = run / "evaluations" / "fixed-torso_length=0.3.csv"
+    assert main([*argv, "--episodes", "2"]) == 0 and len(pd.read_csv(path)) == 2
+    stored = path.read_bytes()
+    capsys.readouterr()
+    assert main(argv) == 2  # FAST's 1 episode
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{path} holds 2 episodes, more than the 1 of this" in err
+    assert path.read_bytes() == stored
+    assert main([*argv, "--episodes", "3"]) == 0 and len(pd.read_csv(path)) == 3  # more replaces
+
+
 def test_out_and_the_dynamics_sweep_form(tmp_path):
     run = write_run(tmp_path, "r", seeds=(0,))
     out = tmp_path / "custom.csv"

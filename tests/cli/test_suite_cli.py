@@ -71,17 +71,15 @@ def test_a_smaller_evaluation_does_not_replace_a_larger_one(tmp_path, capsys):
     argv = ["evaluate", str(run), "--suite", "paper", "--workers", "1", *FAST]
     assert main([*argv, "--points", "2"]) == 0  # a coarse look: 4 points x 1 episode
     assert main([*argv, "--points", "3"]) == 0  # a larger one replaces it
-    stored = {p: p.read_bytes() for p in (run / "suites").iterdir()}
+    stored = {p: p.read_bytes() for p in run.glob("*/*paper*")}  # the episodes and summary
     assert pd.read_csv(run / "suites/paper.csv")["points"].tolist() == [9]
     capsys.readouterr()
     for smaller in (["--points", "2"], ["--points", "2", "--episodes", "2"]):  # 4 and 8 < 9
         assert main([*argv, *smaller]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1
-        assert (
-            f"{run}/suites/paper.csv holds suite paper on 9 points x 1 episodes, more than" in err
-        )
-    assert {p: p.read_bytes() for p in (run / "suites").iterdir()} == stored
+        assert f"{run}/evaluations/suite-paper.csv holds 9 episodes, more than the" in err
+    assert {p: p.read_bytes() for p in run.glob("*/*paper*")} == stored
     assert main([*argv, "--points", "3"]) == 0  # the same again: a rerun replaces it
 
 
