@@ -165,6 +165,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
 
     from adarl.evaluation import suites
     from adarl.evaluation.evaluate import check_not_smaller
+    from adarl.evaluation.evaluate import tables as evaluate_tables
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
     from adarl.runs.layout import EVALUATIONS_DIR
@@ -203,17 +204,10 @@ def run_suite_command(args: argparse.Namespace) -> int:
         check_writable_file(episodes_path)
         check_writable_file(suites.summary_path(run_, args.suite, args.checkpoint))
         check_not_smaller(episodes_path, sum(u.episodes for u in units if u.run_index == index))
-    tables = suites.run_suite(
-        runs,
-        args.suite,
-        args.episodes,
-        workers=args.workers,
-        backend=args.backend,
-        address=args.address,
-        progress=not args.no_progress,
-        points=args.points,
-        **options,
-    )
+    tables = evaluate_tables(  # the units planned above: `suites.run_suite` would plan again
+        runs, units, args.workers, args.backend, args.address, not args.no_progress,
+        desc=f"suite {args.suite}",
+    )  # fmt: skip
     command = command_line(args)
     for run_, table in zip(runs, tables):
         _, summary_path = suites.write_suite(

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import table1_ant_humanoid as table1
-from table1_ant_humanoid import _read, export, folder, seed_scores
+from table1_ant_humanoid import export, folder, read_gzipped, seed_scores
 
 from adarl import stats
 
@@ -54,7 +54,7 @@ def load(rows: Path = ROWS) -> dict[int, dict]:
             continue
         scores, last = {}, BUDGET
         for path in paths:
-            s, step = seed_scores(_read(path))
+            s, step = seed_scores(read_gzipped(path))
             scores |= s
             last = min(last, step)
         out[rank] = {"scores": scores, "last_step": last}

@@ -9,12 +9,11 @@ and its power, for the score (the last 5 evaluations) and the final evaluation.
 from __future__ import annotations
 
 import collections
-import csv
-import gzip
 import sys
 from pathlib import Path
 
 import numpy as np
+from table1_ant_humanoid import read_gzipped
 
 from adarl import stats
 from adarl.results.collect import last_k_scores
@@ -32,8 +31,7 @@ def rows(path: Path) -> list[dict]:
     neither is."""
     packed = path.with_name(path.name + ".gz")
     if not path.is_file() and packed.is_file():
-        with gzip.open(packed, "rt", newline="") as f:
-            return list(csv.DictReader(f))
+        return read_gzipped(packed)
     return read_csv(path) if path.is_file() else []
 
 

@@ -67,7 +67,8 @@ def gzip_copy(source: Path, target: Path) -> None:
     partial.replace(target)
 
 
-def _read(path: Path) -> list[dict]:
+def read_gzipped(path: Path) -> list[dict]:
+    """The rows of a gzipped CSV (as `export` writes them)."""
     with gzip.open(path, "rt", newline="") as f:
         return list(csv.DictReader(io.StringIO(f.read())))
 
@@ -108,13 +109,13 @@ def load(rows: Path = ROWS) -> dict:
         task, method = method_dir.parts[-2], method_dir.parts[-1]
         scores, survived, last, truncations = {}, {}, BUDGET, []
         for path in sorted(method_dir.glob("seeds-*-eval.csv.gz")):
-            evaluations = _read(path)
+            evaluations = read_gzipped(path)
             s, step = seed_scores(evaluations)
             scores |= s
             survived |= seed_survival(evaluations)
             last = min(last, step)
         for path in sorted(method_dir.glob("seeds-*-truncations.csv.gz")):
-            truncations += _read(path)
+            truncations += read_gzipped(path)
         out[task][method] = {
             "scores": scores,
             "survived": survived,
