@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from table1_ant_humanoid import read_gzipped
+from table1_ant_humanoid import folder, read_gzipped
 
 from adarl import stats
 from adarl.results.collect import last_k_scores
@@ -113,4 +113,10 @@ def main(sweep: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]))
+    if sys.argv[1:] in (["-h"], ["--help"]):
+        print(__doc__)
+    elif len(sys.argv) != 2:
+        print("usage: mechanism.py SWEEP_DIR", file=sys.stderr)
+        sys.exit(2)
+    else:
+        main(folder(sys.argv[1]))
