@@ -23,7 +23,6 @@ rows of `throughput.csv`.
 from __future__ import annotations
 
 import csv
-import heapq
 import io
 import math
 import os
@@ -164,35 +163,58 @@ def critical_paths(jobs: list[tuple[str, float, str | None, float]]) -> dict[str
 
 
 def fork_schedule_seconds(
-    jobs: list[tuple[str, float, str | None, float]], slots: int, by_critical_path: bool = True
+    jobs: list[tuple[str, float, str | None, float]],
+    slots: int,
+    by_critical_path: bool = True,
+    capacity: float | None = None,
 ) -> float:
-    """Wall time of the runner's schedule of `jobs` (id, duration, parent id or None, seconds
-    after the parent's start at which it may start), listed in file order. A fork is ready once
-    its parent has run that long (at once if its parent is not in `jobs`); each free slot takes
+    """Wall time of the runner's schedule of `jobs` (id, duration, parent id or None, seconds of
+    the parent's work after which it may start), listed in file order. A fork is ready once its
+    parent has done that much work (at once if its parent is not in `jobs`); each free slot takes
     the ready job with the longest critical path (`critical_paths`; file order among equals), or
-    with `by_critical_path` false the one that became ready first (file order at the start)."""
+    with `by_critical_path` false the one that became ready first (file order at the start).
+
+    Durations are seconds of work at the measured rate, which `capacity` jobs at once sustain
+    (cores ÷ cpus_per_unit; None: every slot). With k > `capacity` jobs running, the cores are
+    shared: each advances at capacity/k of its rate (processor sharing), so a job that runs alone
+    at the end runs at full speed again."""
     ids = {job[0] for job in jobs}
     paths = critical_paths(jobs) if by_critical_path else {}
     index = {job[0]: i for i, job in enumerate(jobs)}
+    forks: dict[str, list[tuple]] = {}
+    for job in jobs:
+        if job[2] in ids:
+            forks.setdefault(job[2], []).append(job)
     ready = [job for job in jobs if job[2] not in ids]
-    released: list[tuple[float, int, tuple]] = []  # (time, order, job)
-    free = [0.0] * max(1, slots)
-    end = 0.0
-    while ready or released:
-        now = heapq.heappop(free)
-        if not ready and released[0][0] > now:
-            now = released[0][0]
-        while released and released[0][0] <= now:
-            ready.append(heapq.heappop(released)[2])
-        job = min(ready, key=lambda j: (-paths[j[0]], index[j[0]])) if paths else ready[0]
-        ready.remove(job)
-        finish = now + job[1]
-        end = max(end, finish)
-        heapq.heappush(free, finish)
-        for i, child in enumerate(jobs):
-            if child[2] == job[0]:
-                heapq.heappush(released, (now + child[3], i, child))
-    return end
+    running: dict[str, list] = {}  # id -> [job, work done]
+    now = 0.0
+
+    def release(uid: str, done: float, finished: bool) -> list[tuple]:
+        out = [f for f in forks.get(uid, []) if finished or f[3] <= done * (1 + 1e-12)]
+        forks[uid] = [f for f in forks.get(uid, []) if f not in out]
+        return out
+
+    while ready or running:
+        while ready and len(running) < max(1, slots):
+            job = min(ready, key=lambda j: (-paths[j[0]], index[j[0]])) if paths else ready[0]
+            ready.remove(job)
+            running[job[0]] = [job, 0.0]
+            ready.extend(release(job[0], 0.0, False))  # forks at the parent's very start
+        speed = 1.0 if capacity is None else min(1.0, capacity / len(running))
+        # the next event: a job finishes, or a parent reaches one of its fork points
+        work = min(job[1] - done for job, done in running.values())
+        for job, done in running.values():
+            work = min([work, *(f[3] - done for f in forks.get(job[0], []))])
+        now += work / speed
+        released = []
+        for uid, state in list(running.items()):
+            state[1] += work
+            finished = state[1] >= state[0][1] * (1 - 1e-12)
+            released += release(uid, state[1], finished)
+            if finished:
+                del running[uid]
+        ready.extend(sorted(released, key=lambda f: index[f[0]]))
+    return now
 
 
 def estimate(
@@ -206,15 +228,12 @@ def estimate(
 ) -> Estimate:
     """The sweep's wall time on `slots` slots with `remaining[unit.id]` steps per seed left per
     unit (0: done; default: its budget, from its fork point for a fork), from the `shipped`
-    measurements and those of the runs already in the sweep folder (`here`, by unit id). Units
-    that would share cores
-    (slots × cpus_per_unit > `cores`) run proportionally slower than measured (the measurements
-    had a core per unit). The schedule is the runner's, critical path first, or with
+    measurements and those of the runs already in the sweep folder (`here`, by unit id). While
+    more units run than `cores` hold (k × cpus_per_unit > `cores`), they share the cores and each
+    runs at cores / (k × cpus_per_unit) of its measured rate (the measurements had their cores to
+    themselves). The schedule is the runner's, critical path first, or with
     `by_critical_path` false the file order (how sweeps ran before the runner ordered them)."""
     here = here or {}
-    share = 1.0
-    if cores and slots * sweep.cpus_per_unit > cores:
-        share = cores / (slots * sweep.cpus_per_unit)
     units, sources = [], set()
     for unit in sweep.units:
         steps = remaining.get(unit.id, unit.total_steps - unit.fork_step)
@@ -223,7 +242,7 @@ def estimate(
             continue
         own = [here[unit.id]] if unit.id in here else []
         rate, matched, used = pick_rate(unit, own, list(here.values()), shipped)
-        seconds = STARTUP_S + len(unit.seeds) * steps / (rate * share)
+        seconds = STARTUP_S + len(unit.seeds) * steps / rate
         units.append(UnitEstimate(unit.id, seconds, matched))
         sources.update(used)
     todo = [u.seconds for u in units if u.seconds > 0]
@@ -241,7 +260,9 @@ def estimate(
             after = STARTUP_S + (seconds[parent] - STARTUP_S) * min(1.0, max(0.0, part))
         jobs.append((unit.id, seconds[unit.id], parent, after))
     return Estimate(
-        seconds=fork_schedule_seconds(jobs, slots, by_critical_path),
+        seconds=fork_schedule_seconds(
+            jobs, slots, by_critical_path, cores / sweep.cpus_per_unit if cores else None
+        ),
         unit_seconds=sum(todo),
         slots=slots,
         units=tuple(units),

@@ -49,6 +49,28 @@ def test_schedule_gives_each_unit_the_first_free_slot(durations, slots, expected
     assert estimate.fork_schedule_seconds(jobs, slots, by_critical_path=False) == in_file_order
 
 
+def test_jobs_beyond_the_capacity_share_it_and_run_at_full_rate_once_fewer_run():
+    """Processor sharing, worked by hand. Three jobs of 10, 10 and 30 s of work, three slots, two
+    cores: all three run at 2/3 until the short ones have done their 10 s (15 s of wall time),
+    then the long one alone does its last 20 s at full rate: 35 s. Slowing every job by 2/3
+    throughout would give 45."""
+    jobs = [("a", 10.0, None, 0.0), ("b", 10.0, None, 0.0), ("c", 30.0, None, 0.0)]
+    assert estimate.fork_schedule_seconds(jobs, 3, capacity=2) == pytest.approx(35)
+    assert estimate.fork_schedule_seconds(jobs, 3) == pytest.approx(30)  # three cores
+    assert estimate.fork_schedule_seconds(jobs, 2, capacity=2) == pytest.approx(30)
+
+
+def test_a_fork_point_is_reached_by_the_parents_work_not_its_wall_time():
+    """p (100 s) has a fork f (80 s) at 50 s of its work; i takes 100 s; two cores. Two slots:
+    p and i to 100, f from 100 to 180. Three slots: p and i alone at full rate to 50, then three
+    at 2/3: p and i do their last 50 s by 125, f its first 50; f's last 30 alone: 155."""
+    jobs = [("p", 100.0, None, 0.0), ("f", 80.0, "p", 50.0), ("i", 100.0, None, 0.0)]
+    assert estimate.fork_schedule_seconds(jobs, 2, capacity=2) == pytest.approx(180)
+    assert estimate.fork_schedule_seconds(jobs, 3, capacity=2) == pytest.approx(155)
+    # a fork at its parent's very start takes a free slot at once
+    assert estimate.fork_schedule_seconds([("p", 10.0, None, 0.0), ("f", 5.0, "p", 0.0)], 2) == 10
+
+
 def test_critical_path_of_a_unit_is_its_time_or_its_forks_when_longer():
     jobs = [("p", 100.0, None, 0.0), ("f", 80.0, "p", 50.0), ("g", 20.0, "p", 70.0),
             ("i", 110.0, None, 0.0)]  # fmt: skip
@@ -112,9 +134,10 @@ def test_estimate_of_a_sweep_from_constructed_measurements():
     assert resumed.unit_seconds == pytest.approx(estimate.STARTUP_S + 600 + 2 * unit_s)
     assert resumed.seconds == pytest.approx(unit_s + estimate.STARTUP_S + 600)
 
-    # 4 workers on 2 cores share them: half the measured rate each
+    # 4 workers on 2 cores share them: half the measured rate each, start-up included
     crowded = estimate.estimate(sweep, {}, 4, shipped, cores=2)
-    assert crowded.seconds == pytest.approx(estimate.STARTUP_S + 2400)
+    assert crowded.seconds == pytest.approx(2 * unit_s)
+    assert crowded.unit_seconds == pytest.approx(4 * unit_s)  # the work is the same
 
     line = estimate.describe(full, "on this machine")
     assert line == (
