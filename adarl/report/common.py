@@ -110,10 +110,6 @@ def interval_text(point: float, low: float, high: float, digits: int) -> tuple[s
     return f"{point:.{digits}f}", ci_text(low, high, digits)
 
 
-def p_text(value: float) -> str:
-    return f"{value:.3f}" if np.isfinite(value) else tables.DASH
-
-
 def rounded(value: float) -> str:
     """A whole number with thousands separators (a detectable difference, seeds needed), or a
     dash where there is none."""

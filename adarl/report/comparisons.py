@@ -18,7 +18,6 @@ from adarl.report.common import (
     Section,
     ci_text,
     csv_text,
-    p_text,
     rounded,
     slug,
     write_file,
@@ -122,7 +121,7 @@ def contrast_section(
             [r["task"], r["method"], r["held fixed"], r["contrast"],
              f"{r[f'mean ({reference})']:.1f}", f"{r['mean (other)']:.1f}",
              f"{r['difference']:.1f} {ci_text(r['ci low'], r['ci high'], 1)}".replace(f" {tables.DASH}", ""),
-             p_text(r["p"]), r["seeds"], rounded(r["detectable"]), rounded(r["seeds_for_target"])]
+             tables.p_text(r["p"]), r["seeds"], rounded(r["detectable"]), rounded(r["seeds_for_target"])]
             for r in df.to_dict("records")
         ],
     )  # fmt: skip

@@ -20,7 +20,6 @@ from adarl.report.common import (
     csv_text,
     final_checkpoint_scores,
     number_text,
-    p_text,
     rounded,
     write_file,
 )
@@ -192,7 +191,7 @@ def differences_section(differences: pd.DataFrame, folder: Path, options: Report
     rows = [
         [r.task, f"{REFERENCE} − {r.baseline}", r.seeds,
          f"{r.difference:.1f} {ci_text(r.low, r.high, 1)}".replace(f" {tables.DASH}", ""),
-         p_text(r.p_value), rounded(r.detectable), rounded(r.seeds_for_target)]
+         tables.p_text(r.p_value), rounded(r.detectable), rounded(r.seeds_for_target)]
         for r in differences.itertuples()
     ]  # fmt: skip
     header = ["task", "comparison", "seeds", f"difference [{conf:.0%} CI, Welch]", "p",

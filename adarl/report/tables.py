@@ -41,6 +41,14 @@ class ScoreTable:
         )
 
 
+def p_text(value: float, digits: int = 3) -> str:
+    """A p-value to `digits` decimals; one that would print as 0.000 prints as `< 0.001`."""
+    if not np.isfinite(value):
+        return DASH
+    smallest = 10.0**-digits
+    return f"< {smallest:.{digits}f}" if value < smallest / 2 else f"{value:.{digits}f}"
+
+
 def score_table(scores: pd.DataFrame, row: str = "task", column: str = "method") -> ScoreTable:
     """Aggregate a long table of `row, column, seed, score` into a `ScoreTable`.
 

@@ -31,6 +31,7 @@ import numpy as np
 import scipy.stats
 
 from adarl import stats
+from adarl.report.tables import p_text
 
 HERE = Path(__file__).resolve().parent
 HOP = 1500.0  # a 3M Hopper score above this is a seed that hops (scores are ~440 or 2,000–3,200)
@@ -175,11 +176,11 @@ def render(results: dict[str, list[dict]]) -> str:
             continue
         for r in rows:
             low, high = r["detectable_range"]
-            holm_p = f"{r['holm_p']:.3f}" if "holm_p" in r else "—"
+            holm_p = p_text(r["holm_p"]) if "holm_p" in r else "—"
             lines.append(
                 f"| {r['comparison']} | {r['test']} | {r['n']} | {_n(r['difference'])} "
-                f"| [{_n(r['t_low'])}, {_n(r['t_high'])}] | {r['t_p']:.3f} "
-                f"| [{_n(r['perm'].low)}, {_n(r['perm'].high)}] | {r['perm_p']:.3f} | {holm_p} "
+                f"| [{_n(r['t_low'])}, {_n(r['t_high'])}] | {p_text(r['t_p'])} "
+                f"| [{_n(r['perm'].low)}, {_n(r['perm'].high)}] | {p_text(r['perm_p'])} | {holm_p} "
                 f"| {r['sd']:,.0f} | {r['detectable']:,.0f} ({low:,.0f}–{high:,.0f}) |"
             )
     lines += [

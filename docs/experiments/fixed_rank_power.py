@@ -28,6 +28,7 @@ import table1_ant_humanoid as table1
 from table1_ant_humanoid import export, folder, read_gzipped, seed_scores
 
 from adarl import stats
+from adarl.report.tables import p_text
 
 HERE = Path(__file__).resolve().parent
 ROWS = HERE / "fixed-rank-power" / "rows"
@@ -81,10 +82,10 @@ def _row(name: str, c: dict, holm_p: str) -> str:
     r_lo, r_hi = c["range"]
     k = c["counts"]
     return (
-        f"| {name} | {c['difference']:+,.0f} | [{lo:+,.0f}, {hi:+,.0f}] | {c['p']:.4f} | {holm_p} "
-        f"| [{w_lo:+,.0f}, {w_hi:+,.0f}] | {c['welch_p']:.3f} | {c['sd']:,.0f} "
+        f"| {name} | {c['difference']:+,.0f} | [{lo:+,.0f}, {hi:+,.0f}] | {p_text(c['p'], 4)} | {holm_p} "
+        f"| [{w_lo:+,.0f}, {w_hi:+,.0f}] | {p_text(c['welch_p'])} | {c['sd']:,.0f} "
         f"| {c['detectable']:,.0f} ({r_lo:,.0f}–{r_hi:,.0f}) "
-        f"| {k.successes_x}/{k.n_x} vs {k.successes_y}/{k.n_y}: {k.fisher_p:.3f}, {k.boschloo_p:.3f} |"
+        f"| {k.successes_x}/{k.n_x} vs {k.successes_y}/{k.n_y}: {p_text(k.fisher_p)}, {p_text(k.boschloo_p)} |"
     )
 
 
@@ -123,7 +124,7 @@ def report(data: dict[int, dict]) -> list[str]:
     lines += head
     for (x, y), r, a in zip(PRIMARY, results, adjusted, strict=True):
         decision = "**detected**" if a < 0.05 else "not detected"
-        lines.append(_row(f"rank {x} − rank {y} ({decision})", r, f"{a:.4f}"))
+        lines.append(_row(f"rank {x} − rank {y} ({decision})", r, p_text(a, 4)))
     lines += ["", "### Exploratory, uncorrected", ""] + head
     for x, y in EXPLORATORY:
         lines.append(_row(f"rank {x} − rank {y}", compare(arm(x), arm(y)), "—"))

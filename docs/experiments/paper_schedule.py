@@ -45,6 +45,7 @@ from table1_ant_humanoid import compare, comparison_row, folder, gzip_copy
 
 from adarl import stats
 from adarl.report import figures
+from adarl.report.tables import p_text
 from adarl.results.collect import last_evaluations
 from adarl.runs.logs import TEXT_COLUMNS
 
@@ -360,7 +361,7 @@ def robustness(root: Path) -> list[str]:
     adjusted = stats.holm([r["p"] for r in results.values()])
     for (score, r), a in zip(results.items(), adjusted, strict=True):
         decision = "**detected**" if a < 0.05 else "not detected"
-        lines.append(comparison_row(f"{score} ({decision})", r, f"{a:.3f}"))
+        lines.append(comparison_row(f"{score} ({decision})", r, p_text(a)))
     return lines + [""]
 
 

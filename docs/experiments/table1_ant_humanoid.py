@@ -30,6 +30,7 @@ import numpy as np
 from scipy import stats as st
 
 from adarl import stats
+from adarl.report.tables import p_text
 
 HERE = Path(__file__).resolve().parent
 ROWS = HERE / "table1-ant-humanoid" / "rows"
@@ -155,7 +156,7 @@ def comparison_row(name: str, c: dict, extra: str) -> str:
     perm = c["permutation"]
     r_lo, r_hi = c["range"]
     return (
-        f"| {name} | {c['difference']:+,.0f} | [{lo:+,.0f}, {hi:+,.0f}] | {c['p']:.3f} | {extra} "
+        f"| {name} | {c['difference']:+,.0f} | [{lo:+,.0f}, {hi:+,.0f}] | {p_text(c['p'])} | {extra} "
         f"| [{_num(perm.low)}, {_num(perm.high)}] | {c['sd']:,.0f} "
         f"| {c['detectable']:,.0f} ({r_lo:,.0f}–{r_hi:,.0f}) |"
     )
@@ -199,7 +200,7 @@ def report(data: dict) -> list[str]:
         lines += head
         for t, a in zip(TASKS, adjusted):
             decision = "**detected**" if a < 0.05 else "not detected"
-            lines.append(comparison_row(f"{t}: adarl − sac ({decision})", results[t], f"{a:.3f}"))
+            lines.append(comparison_row(f"{t}: adarl − sac ({decision})", results[t], p_text(a)))
         lines.append("")
 
     lines += [
@@ -216,7 +217,7 @@ def report(data: dict) -> list[str]:
             if method != ADARL and finished(task, ADARL):
                 ours = data[task][ADARL]["survived"]
                 test = stats.counts_exact_test(sum(ours.values()), len(ours), sum(kept.values()), len(kept))  # fmt: skip
-                cell = f"{test.fisher_p:.3f}, {test.boschloo_p:.3f}"
+                cell = f"{p_text(test.fisher_p)}, {p_text(test.boschloo_p)}"
             lines.append(f"| {task} | {label(method)} | {sum(kept.values())}/{len(kept)} | {cell} |")  # fmt: skip
     lines.append("")
 

@@ -65,3 +65,12 @@ def test_latex_escapes_and_markdown_table_alignment():
     md = tables.markdown_table(["a", "b", "c"], [["x", 1.5, "text"], ["y|z", 2, "more"]])
     assert md.splitlines()[1] == "| :--- | ---: | :--- |"
     assert r"y\|z" in md
+
+
+@pytest.mark.parametrize(
+    "p, text",
+    [(0.04999, "0.050"), (0.0005, "0.001"), (0.000499, "< 0.001"), (0.0, "< 0.001"),
+     (1.0, "1.000"), (float("nan"), tables.DASH)],
+)  # fmt: skip
+def test_a_p_value_never_prints_as_zero(p, text):
+    assert tables.p_text(p) == text
