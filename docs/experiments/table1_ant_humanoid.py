@@ -3,6 +3,7 @@ rows out of the sweep, and the pre-registered analysis from those rows only.
 
     python docs/experiments/table1_ant_humanoid.py export results/table1-ant-humanoid
     python docs/experiments/table1_ant_humanoid.py report          # prints the report's tables
+    python docs/experiments/table1_ant_humanoid.py figure          # the learning curves
 
 `export` copies each unit's eval.csv, truncations.csv and episodes.csv (gzip) to
 docs/experiments/table1-ant-humanoid/rows/<task>/<method>/ (never checkpoints), so that `report`
@@ -13,7 +14,9 @@ Welch's t-test, Holm over the two; beside each the inverted two-sample permutati
 Welch's detectable difference at 80% power with its range over the pooled SD's 95% interval;
 AdaRL − each baseline (Parseval: the best of three by mean score, chosen after seeing the data)
 is exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
-A unit that has not reached the budget is reported as running and enters no test.
+A unit that has not reached the budget is reported as running and enters no test. `figure`
+draws each method's nominal return over training per task (mean over seeds with its 95% t band,
+Parseval at its best coefficient) into table1-ant-humanoid/curves.png and .pdf, descriptive.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from adarl.report.tables import p_text
 
 HERE = Path(__file__).resolve().parent
 ROWS = HERE / "table1-ant-humanoid" / "rows"
+CURVES = HERE / "table1-ant-humanoid" / "curves"  # .png and .pdf
 FILES = ("eval.csv", "truncations.csv", "episodes.csv")
 BUDGET = 300_000
 LAST_K = 5
@@ -225,8 +229,7 @@ def report(data: dict) -> list[str]:
     for task in TASKS:
         if not finished(task, ADARL):
             continue
-        parseval = [m for m in data[task] if m.startswith("sac-parseval") and finished(task, m)]
-        best = max(parseval, key=lambda m: arm(task, m).mean(), default=None)
+        best = best_parseval(data, task)
         for method in sorted(data[task]):
             if method in (ADARL, SAC) or not finished(task, method):
                 continue
@@ -252,6 +255,51 @@ def report(data: dict) -> list[str]:
     return lines
 
 
+def best_parseval(data: dict, task: str) -> str | None:
+    """The Parseval coefficient with the highest mean score among the finished ones (chosen
+    after seeing the data, as the paper did)."""
+    finished = [
+        m
+        for m, d in data.get(task, {}).items()
+        if m.startswith("sac-parseval") and d["last_step"] >= BUDGET and len(d["scores"]) >= 2
+    ]
+    return max(
+        finished, key=lambda m: np.mean(list(data[task][m]["scores"].values())), default=None
+    )
+
+
+def curves(rows: Path = ROWS) -> dict:
+    """task -> method label -> DataFrame (step, seed, return): the mean return of each nominal
+    evaluation, every method but the Parseval coefficients other than the best finished one."""
+    import pandas as pd
+
+    data = load(rows)
+    out = {}
+    for task in TASKS:
+        best = best_parseval(data, task)
+        for method_dir in sorted((rows / task).glob("*")):
+            method = method_dir.name
+            if method.startswith("sac-parseval") and best is not None and method != best:
+                continue
+            evaluations = [
+                r
+                for path in sorted(method_dir.glob("seeds-*-eval.csv.gz"))
+                for r in read_gzipped(path)
+                if r["dynamics"] == "nominal"
+            ]
+            table = pd.DataFrame(evaluations, columns=["step", "seed", "return"]).astype(float)
+            name = label(method) + (" (best of 3)" if method == best else "")
+            out.setdefault(task, {})[name] = table.groupby(["step", "seed"], as_index=False).mean()
+    return out
+
+
+def figure(rows: Path = ROWS, stem: Path = CURVES) -> list[Path]:
+    """Draw `curves(rows)`, one panel per task; returns the files written."""
+    from adarl.report import figures
+
+    return figures.save_figure(figures.training_curves(curves(rows)), stem)
+
+
 def folder(argument: str) -> Path:
     """The folder a command-line argument names (a sweep's, or exported rows); where there is
     none, a one-line error and exit 2."""
@@ -273,7 +321,11 @@ def main(argv: list[str]) -> int:
     if argv[:1] == ["report"] and len(argv) in (1, 2):
         print("\n".join(report(load(folder(argv[1]) if len(argv) == 2 else ROWS))))
         return 0
-    print("usage: table1_ant_humanoid.py export SWEEP | report [ROWS]", file=sys.stderr)
+    if argv[:1] == ["figure"] and len(argv) in (1, 2):
+        for path in figure(folder(argv[1]) if len(argv) == 2 else ROWS):
+            print(f"wrote {path}")
+        return 0
+    print("usage: table1_ant_humanoid.py export SWEEP | report [ROWS] | figure [ROWS]", file=sys.stderr)  # fmt: skip
     return 2
 
 

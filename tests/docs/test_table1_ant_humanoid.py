@@ -120,3 +120,23 @@ def test_survival_counts_with_fishers_test(script, tmp_path):
     # probabilities 56, 140, 56 out of C(10, 5) = 252; two-sided Fisher p = (56 + 56) / 252
     assert f"| ant | sac | 3/5 | {112 / 252:.3f}, " in "\n".join(lines)
     assert "| ant | adarl | 5/5 | — |" in lines
+
+
+def test_figure_draws_each_methods_mean_curve_with_the_best_parseval_only(script, tmp_path):
+    sweep = tmp_path / "sweep"
+    _unit(sweep, "ant", "sac", [100.0, 300.0])
+    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-03", [500.0, 500.0])
+    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-04", [700.0, 900.0])
+    _unit(sweep, "humanoid", "adarl", [50.0, 70.0], last_step=120_000)  # running: drawn as far
+    script.export(sweep, tmp_path / "rows")
+    found = script.curves(tmp_path / "rows")
+    assert sorted(found["ant"]) == ["sac", "sac-parseval 1e-04 (best of 3)"]
+    # the evaluation's mean over its two episodes (noise -1, +1): returns[s] + step/1e5
+    sac = found["ant"]["sac"]
+    assert sac[sac.step == 20_000].sort_values("seed")["return"].tolist() == pytest.approx([100.2, 300.2])  # fmt: skip
+    assert found["humanoid"]["adarl"].step.max() == 120_000
+    written = script.figure(tmp_path / "rows", tmp_path / "fig" / "curves")
+    assert sorted(p.name for p in written) == ["curves.pdf", "curves.png"]
+    with pytest.raises(SystemExit) as stopped:
+        script.main(["figure", str(tmp_path / "nope")])
+    assert stopped.value.code == 2
