@@ -5,7 +5,7 @@ rows out of the sweep, and the pre-registered analysis from those rows only.
     python docs/experiments/table1_ant_humanoid.py report          # prints the report's tables
     python docs/experiments/table1_ant_humanoid.py figure          # the learning curves
 
-`export` copies each unit's eval.csv, truncations.csv and episodes.csv (gzip) to
+`export` copies each unit's eval.csv, truncations.csv, episodes.csv and train.csv (gzip) to
 docs/experiments/table1-ant-humanoid/rows/<task>/<method>/ (never checkpoints), so that `report`
 and any referee recompute every number from the repository. `report` follows the
 pre-registration: the score of a seed is the mean of its last 5 nominal evaluations, each
@@ -34,11 +34,12 @@ from scipy import stats as st
 
 from adarl import stats
 from adarl.report.tables import p_text
+from adarl.sweeps.estimate import train_seconds
 
 HERE = Path(__file__).resolve().parent
 ROWS = HERE / "table1-ant-humanoid" / "rows"
 CURVES = HERE / "table1-ant-humanoid" / "curves"  # .png and .pdf
-FILES = ("eval.csv", "truncations.csv", "episodes.csv")
+FILES = ("eval.csv", "truncations.csv", "episodes.csv", "train.csv")
 BUDGET = 300_000
 LAST_K = 5
 TIME_LIMIT = 1000  # steps of an Ant or Humanoid episode that neither falls nor flips
@@ -108,11 +109,12 @@ def seed_survival(eval_rows: list[dict], k: int = LAST_K) -> dict[int, bool]:
 
 def load(rows: Path = ROWS) -> dict:
     """task -> method -> {"scores": {seed: score}, "survived": {seed: bool}, "last_step",
-    "truncations": rows}."""
+    "truncations": rows, "train_s": seconds of training summed over its attempts (train.csv's
+    intervals over their rates, `adarl.sweeps.estimate.train_seconds`; None without train.csv)}."""
     out = defaultdict(dict)
     for method_dir in sorted(rows.glob("*/*")):
         task, method = method_dir.parts[-2], method_dir.parts[-1]
-        scores, survived, last, truncations = {}, {}, BUDGET, []
+        scores, survived, last, truncations, train_s = {}, {}, BUDGET, [], None
         for path in sorted(method_dir.glob("seeds-*-eval.csv.gz")):
             evaluations = read_gzipped(path)
             s, step = seed_scores(evaluations)
@@ -121,11 +123,14 @@ def load(rows: Path = ROWS) -> dict:
             last = min(last, step)
         for path in sorted(method_dir.glob("seeds-*-truncations.csv.gz")):
             truncations += read_gzipped(path)
+        for path in sorted(method_dir.glob("seeds-*-train.csv.gz")):
+            train_s = (train_s or 0.0) + train_seconds(read_gzipped(path))[1]
         out[task][method] = {
             "scores": scores,
             "survived": survived,
             "last_step": last,
             "truncations": truncations,
+            "train_s": train_s,
         }
     return out
 
@@ -168,15 +173,16 @@ def comparison_row(name: str, c: dict, extra: str) -> str:
 
 def report(data: dict) -> list[str]:
     lines = ["### Scores (mean of the last 5 nominal evaluations per seed)", ""]
-    lines += ["| task | method | seeds | last step | mean ± SD | per seed |", "| --- | --- | ---: | ---: | ---: | --- |"]  # fmt: skip
+    lines += ["| task | method | seeds | last step | mean ± SD | per seed | training (h) |", "| --- | --- | ---: | ---: | ---: | --- | ---: |"]  # fmt: skip
     for task in TASKS:
         for method, d in sorted(data.get(task, {}).items()):
             v = np.array([d["scores"][s] for s in sorted(d["scores"])])
             state = f"{d['last_step']:,}" + ("" if d["last_step"] >= BUDGET else " (running)")
             per_seed = ", ".join(f"{x:,.0f}" for x in v)
             spread = f"{v.mean():,.0f} ± {v.std(ddof=1):,.0f}" if v.size > 1 else "—"
+            hours = "—" if d["train_s"] is None else f"{d['train_s'] / 3600:.1f}"
             lines.append(
-                f"| {task} | {label(method)} | {v.size} | {state} | {spread} | {per_seed} |"
+                f"| {task} | {label(method)} | {v.size} | {state} | {spread} | {per_seed} | {hours} |"
             )
     lines.append("")
 

@@ -140,3 +140,18 @@ def test_figure_draws_each_methods_mean_curve_with_the_best_parseval_only(script
     with pytest.raises(SystemExit) as stopped:
         script.main(["figure", str(tmp_path / "nope")])
     assert stopped.value.code == 2
+
+
+def test_the_score_table_gives_each_units_training_time_from_its_train_csv(script, tmp_path):
+    unit = _unit(tmp_path / "sweep", "ant", "sac", [100.0, 200.0])
+    with (unit / "train.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["step", "seed", "steps_per_s", "loss_q"])
+        for step, rate in ((180_000, 100.0), (300_000, 200.0 / 3)):  # 1,800 s each: one hour
+            w.writerows([[step, 0, rate, 1.0], [step, 1, rate, 1.0]])  # one clock, both seeds
+    _unit(tmp_path / "sweep", "humanoid", "sac", [100.0, 200.0])  # no train.csv
+    script.export(tmp_path / "sweep", tmp_path / "rows")
+    assert (tmp_path / "rows/ant/sac/seeds-0-4-train.csv.gz").exists()
+    lines = script.report(script.load(tmp_path / "rows"))
+    assert any(line.startswith("| ant | sac | 2 | 300,000 |") and line.endswith("| 1.0 |") for line in lines)  # fmt: skip
+    assert any(line.startswith("| humanoid | sac |") and line.endswith("| — |") for line in lines)
