@@ -110,6 +110,19 @@ def _log2_axis(ax, which: str) -> None:
     axis.set_minor_locator(matplotlib.ticker.NullLocator())
 
 
+def steps_label(steps: float) -> str:
+    """An environment-step tick: 500, 250k, 1.5M."""
+    for scale, suffix in ((1e6, "M"), (1e3, "k")):
+        if abs(steps) >= scale:
+            return f"{steps / scale:g}{suffix}"
+    return f"{steps:g}"
+
+
+def _steps_axis(ax) -> None:
+    ax.set_xlabel("environment steps")
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: steps_label(v)))
+
+
 def _rank_axes(
     ax, layer: str, title: str, intrinsic_rank, truncations: Sequence[int], legend: bool = True
 ) -> None:
@@ -121,7 +134,7 @@ def _rank_axes(
     for i, step in enumerate(truncations):
         ax.axvline(step, label="truncation" if i == 0 else None, **TRUNCATION_STYLE)
     ax.set_title(f"{title}: {layer}" if title else layer)
-    ax.set_xlabel("environment steps")
+    _steps_axis(ax)
     ax.set_ylabel("rank")
     _log2_axis(ax, "y")
     if legend:
@@ -156,7 +169,7 @@ def training_curves(
         for i, step in enumerate((truncations or {}).get(task, [])):
             ax.axvline(step, label="truncation" if i == 0 else None, **TRUNCATION_STYLE)
         ax.set_title(task)
-        ax.set_xlabel("environment steps")
+        _steps_axis(ax)
         ax.set_ylabel("return (nominal dynamics)")
         ax.legend(loc="best")
     return fig

@@ -53,6 +53,15 @@ def test_training_curves_have_a_panel_per_task_and_truncation_lines(runs):
     adarl_line = hopper.get_lines()[0]
     assert list(adarl_line.get_xdata()) == [1600, 3200, 4800, 6400, 8000]
     assert len(hopper.collections) == 2  # one confidence band per method
+    assert hopper.xaxis.get_major_formatter()(4000, 0) == "4k"
+
+
+@pytest.mark.parametrize(
+    "steps, text", [(0, "0"), (500, "500"), (1_000, "1k"), (250_000, "250k"), (1_500_000, "1.5M"),
+                    (3_000_000, "3M"), (700_950, "700.95k")],
+)  # fmt: skip
+def test_step_ticks_are_short(steps, text):
+    assert figures.steps_label(steps) == text
 
 
 def test_rank_trajectories_per_layer_and_seed_with_the_intrinsic_rank(runs):
