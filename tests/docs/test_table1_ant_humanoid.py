@@ -155,3 +155,6 @@ def test_the_score_table_gives_each_units_training_time_from_its_train_csv(scrip
     lines = script.report(script.load(tmp_path / "rows"))
     assert any(line.startswith("| ant | sac | 2 | 300,000 |") and line.endswith("| 1.0 |") for line in lines)  # fmt: skip
     assert any(line.startswith("| humanoid | sac |") and line.endswith("| — |") for line in lines)
+    # no AdaRL unit: no exploratory comparison, and no empty table
+    assert "None yet: AdaRL and a baseline must both finish on a task." in lines
+    assert not any(line.startswith("| comparison |") for line in lines)
