@@ -110,13 +110,16 @@ def seed_survival(eval_rows: list[dict], k: int = LAST_K) -> dict[int, bool]:
 def load(rows: Path = ROWS) -> dict:
     """task -> method -> {"scores": {seed: score}, "survived": {seed: bool}, "last_step",
     "truncations": rows, "train_s": seconds of training summed over its attempts (train.csv's
-    intervals over their rates, `adarl.sweeps.estimate.train_seconds`; None without train.csv)}."""
+    intervals over their rates, `adarl.sweeps.estimate.train_seconds`; None without train.csv),
+    "nominal": its nominal evaluation rows}."""
     out = defaultdict(dict)
     for method_dir in sorted(rows.glob("*/*")):
         task, method = method_dir.parts[-2], method_dir.parts[-1]
         scores, survived, last, truncations, train_s = {}, {}, BUDGET, [], None
+        nominal = []
         for path in sorted(method_dir.glob("seeds-*-eval.csv.gz")):
             evaluations = read_gzipped(path)
+            nominal += [r for r in evaluations if r["dynamics"] == "nominal"]
             s, step = seed_scores(evaluations)
             scores |= s
             survived |= seed_survival(evaluations)
@@ -131,6 +134,7 @@ def load(rows: Path = ROWS) -> dict:
             "last_step": last,
             "truncations": truncations,
             "train_s": train_s,
+            "nominal": nominal,
         }
     return out
 
@@ -187,8 +191,7 @@ def report(data: dict) -> list[str]:
     lines.append("")
 
     def finished(task, method):
-        d = data.get(task, {}).get(method)
-        return d is not None and d["last_step"] >= BUDGET and len(d["scores"]) >= 2
+        return is_finished(data.get(task, {}).get(method))
 
     def arm(task, method):
         d = data[task][method]["scores"]
@@ -263,14 +266,15 @@ def report(data: dict) -> list[str]:
     return lines
 
 
+def is_finished(unit: dict | None) -> bool:
+    """A unit of `load` that reached the budget with at least two seeds' scores."""
+    return unit is not None and unit["last_step"] >= BUDGET and len(unit["scores"]) >= 2
+
+
 def best_parseval(data: dict, task: str) -> str | None:
     """The Parseval coefficient with the highest mean score among the finished ones (chosen
     after seeing the data, as the paper did)."""
-    finished = [
-        m
-        for m, d in data.get(task, {}).items()
-        if m.startswith("sac-parseval") and d["last_step"] >= BUDGET and len(d["scores"]) >= 2
-    ]
+    finished = [m for m, d in data.get(task, {}).items() if m.startswith("sac-parseval") and is_finished(d)]  # fmt: skip
     return max(
         finished, key=lambda m: np.mean(list(data[task][m]["scores"].values())), default=None
     )
@@ -285,17 +289,10 @@ def curves(rows: Path = ROWS) -> dict:
     out = {}
     for task in TASKS:
         best = best_parseval(data, task)
-        for method_dir in sorted((rows / task).glob("*")):
-            method = method_dir.name
+        for method, unit in sorted(data.get(task, {}).items()):
             if method.startswith("sac-parseval") and best is not None and method != best:
                 continue
-            evaluations = [
-                r
-                for path in sorted(method_dir.glob("seeds-*-eval.csv.gz"))
-                for r in read_gzipped(path)
-                if r["dynamics"] == "nominal"
-            ]
-            table = pd.DataFrame(evaluations, columns=["step", "seed", "return"]).astype(float)
+            table = pd.DataFrame(unit["nominal"], columns=["step", "seed", "return"]).astype(float)
             name = label(method) + (" (best of 3)" if method == best else "")
             out.setdefault(task, {})[name] = table.groupby(["step", "seed"], as_index=False).mean()
     return out
