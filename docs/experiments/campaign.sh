@@ -8,30 +8,39 @@
 # where it stops, and the sweep exits 130, which ends this script too):
 #   kill -TERM -- -$(cat /work/main/results/campaign.pid)
 # (CAMPAIGN_CODE, CAMPAIGN_PYTHON and CAMPAIGN_RESULTS replace the three paths below in its test.)
+# Bash reads a script as it runs it: replace this file (write a copy, then mv), never edit it in
+# place while the campaign runs.
 set -u
+E=$(cd "$(dirname "$0")" && pwd)
 cd "${CAMPAIGN_CODE:-/work/camp}"  # python -m puts the working folder first: the frozen code runs
 PY=${CAMPAIGN_PYTHON:-/work/main/.venv/bin/python}
 R=${CAMPAIGN_RESULTS:-/work/main/results}
 mkdir -p "$R"
-for preset in table1-ant-humanoid paper-schedule-walker2d fixed-rank-power; do
-  echo "== $(date -u +%FT%TZ) $preset"
-  $PY -m adarl.cli.main sweep "$preset" --out "$R/$preset" --workers 2 --no-progress
+# From 2026-12-05 the sweeps of more than a session's units run one seed per unit (campaign.md,
+# "One seed per unit"): the sweep files beside this script; Humanoid first (the longest units).
+for sweep in "$E/table1-ant-humanoid/table1-humanoid.yaml" "$E/table1-ant-humanoid/table1-ant-rest.yaml" \
+  "$E/paper-schedule-walker2d/paper-schedule-walker2d.yaml" fixed-rank-power; do
+  name=$(basename "$sweep" .yaml)
+  echo "== $(date -u +%FT%TZ) $name"
+  $PY -m adarl.cli.main sweep "$sweep" --out "$R/$name" --workers 2 --no-progress
   code=$?
-  echo "== $(date -u +%FT%TZ) $preset exited $code"
+  echo "== $(date -u +%FT%TZ) $name exited $code"
   # stopped (Ctrl-C, SIGTERM: 130) or refused (bad input: 2): go no further
   if [ "$code" -eq 130 ] || [ "$code" -eq 2 ]; then exit "$code"; fi
   # issue 34 §3.4 on Walker2d's 3M policies (paper-schedule-walker2d.md, "Robustness at 3M"),
-  # once every unit is done, before a new machine can lose them. A stopped evaluation starts
-  # again at the next resume; a finished one (both suites/paper.csv written) is not repeated.
-  W=$R/paper-schedule-walker2d/walker2d
-  if [ "$preset" = paper-schedule-walker2d ] && [ "$code" -eq 0 ] &&
-    { [ ! -f "$W/adarl_rank_rule-cumulative/seeds-0-4/suites/paper.csv" ] ||
-      [ ! -f "$W/sac/seeds-0-4/suites/paper.csv" ]; }; then
-    echo "== $(date -u +%FT%TZ) robustness at 3M (paper suite, 5 episodes a point)"
-    $PY -m adarl.cli.main evaluate "$W/adarl_rank_rule-cumulative/seeds-0-4" "$W/sac/seeds-0-4" \
-      --suite paper --episodes 5 --workers 2 --no-progress
-    code=$?
-    echo "== $(date -u +%FT%TZ) robustness exited $code"
-    if [ "$code" -eq 130 ] || [ "$code" -eq 143 ]; then exit "$code"; fi  # stopped
+  # once every unit is done, before a new machine can lose them: each AdaRL and SAC run that
+  # has no suites/paper.csv yet (a stopped evaluation starts again at the next resume).
+  if [ "$name" = paper-schedule-walker2d ] && [ "$code" -eq 0 ]; then
+    todo=()
+    for run in "$R/$name"/walker2d/{adarl_rank_rule-cumulative,sac}/seeds-*; do
+      [ -d "$run" ] && [ ! -f "$run/suites/paper.csv" ] && todo+=("$run")
+    done
+    if [ "${#todo[@]}" -gt 0 ]; then
+      echo "== $(date -u +%FT%TZ) robustness at 3M (paper suite, 5 episodes a point): ${#todo[@]} runs"
+      $PY -m adarl.cli.main evaluate "${todo[@]}" --suite paper --episodes 5 --workers 2 --no-progress
+      code=$?
+      echo "== $(date -u +%FT%TZ) robustness exited $code"
+      if [ "$code" -eq 130 ] || [ "$code" -eq 143 ]; then exit "$code"; fi  # stopped
+    fi
   fi
 done

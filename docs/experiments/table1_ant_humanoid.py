@@ -14,7 +14,9 @@ Welch's t-test, Holm over the two; beside each the inverted two-sample permutati
 Welch's detectable difference at 80% power with its range over the pooled SD's 95% interval;
 AdaRL − each baseline (Parseval: the best of three by mean score, chosen after seeing the data)
 is exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
-A unit that has not reached the budget is reported as running and enters no test. `figure`
+A method whose five seeds have not all reached the budget (in one unit of 5 seeds, or in
+units of one seed, as the campaign ran them from 2026-12-05) is reported as running and enters
+no test. `figure`
 draws each method's nominal return over training per task (mean over seeds with its 95% t band,
 Parseval at its best coefficient) into table1-ant-humanoid/curves.png and .pdf, descriptive.
 """
@@ -46,6 +48,7 @@ TIME_LIMIT = 1000  # steps of an Ant or Humanoid episode that neither falls nor 
 TASKS = ("ant", "humanoid")
 ACTION_DIM = {"ant": 8, "humanoid": 17}  # 2·d_a + 1: 17 and 35
 ADARL, SAC = "adarl", "sac"
+SEEDS = [0, 1, 2, 3, 4]
 
 
 def export(sweep: Path, rows: Path = ROWS) -> list[Path]:
@@ -181,7 +184,7 @@ def report(data: dict) -> list[str]:
     for task in TASKS:
         for method, d in sorted(data.get(task, {}).items()):
             v = np.array([d["scores"][s] for s in sorted(d["scores"])])
-            state = f"{d['last_step']:,}" + ("" if d["last_step"] >= BUDGET else " (running)")
+            state = f"{d['last_step']:,}" + ("" if is_finished(d) else " (running)")
             per_seed = ", ".join(f"{x:,.0f}" for x in v)
             spread = f"{v.mean():,.0f} ± {v.std(ddof=1):,.0f}" if v.size > 1 else "—"
             hours = "—" if d["train_s"] is None else f"{d['train_s'] / 3600:.1f}"
@@ -267,8 +270,9 @@ def report(data: dict) -> list[str]:
 
 
 def is_finished(unit: dict | None) -> bool:
-    """A unit of `load` that reached the budget with at least two seeds' scores."""
-    return unit is not None and unit["last_step"] >= BUDGET and len(unit["scores"]) >= 2
+    """A method of `load` whose pre-registered seeds all reached the budget (one unit of 5 seeds,
+    or units of one seed each, as the campaign ran them from 2026-12-05)."""
+    return unit is not None and unit["last_step"] >= BUDGET and sorted(unit["scores"]) == SEEDS
 
 
 def best_parseval(data: dict, task: str) -> str | None:

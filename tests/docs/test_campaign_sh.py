@@ -1,6 +1,6 @@
 """docs/experiments/campaign.sh, the campaign's driver, with a stand-in for Python that records
 each command and answers with a chosen exit status: the sweeps in issue 34's order, the robustness
-evaluation right after the Walker2d sweep until both runs have it, and a stop that ends it all."""
+evaluation right after the Walker2d sweep of each run that lacks it, and a stop that ends it all."""
 
 import os
 import subprocess
@@ -8,13 +8,21 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).parents[2] / "docs/experiments/campaign.sh"
-PRESETS = ("table1-ant-humanoid", "paper-schedule-walker2d", "fixed-rank-power")
+EXPERIMENTS = Path(__file__).parents[2] / "docs/experiments"
+SCRIPT = EXPERIMENTS / "campaign.sh"
+SWEEPS = (
+    str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid.yaml"),
+    str(EXPERIMENTS / "table1-ant-humanoid/table1-ant-rest.yaml"),
+    str(EXPERIMENTS / "paper-schedule-walker2d/paper-schedule-walker2d.yaml"),
+    "fixed-rank-power",
+)
+WALKER2D = SWEEPS[2]
+EVALUATED = ("adarl_rank_rule-cumulative", "sac")  # the control is not (paper-schedule-walker2d.md)
 
 
 def _campaign(tmp_path: Path, exits: dict[str, int] | None = None) -> tuple[int, list[str]]:
     """Run the script; the stand-in exits with exits[word] when a word of its command is a key
-    (a preset, or `evaluate`), else 0. Returns the exit status and the commands, in order."""
+    (a sweep, or `evaluate`), else 0. Returns the exit status and the commands, in order."""
     log = tmp_path / "commands"
     cases = "".join(f'    *" {word} "*) code={code} ;;\n' for word, code in (exits or {}).items())
     python = tmp_path / "python"
@@ -37,56 +45,76 @@ def _campaign(tmp_path: Path, exits: dict[str, int] | None = None) -> tuple[int,
     return done.returncode, [c.removeprefix("-m adarl.cli.main ") for c in commands]
 
 
-def _sweep(tmp_path: Path, preset: str) -> str:
-    out = tmp_path / "results" / preset
-    return f"sweep {preset} --out {out} --workers 2 --no-progress"
+def _sweep(tmp_path: Path, sweep: str) -> str:
+    out = tmp_path / "results" / Path(sweep).name.removesuffix(".yaml")
+    return f"sweep {sweep} --out {out} --workers 2 --no-progress"
 
 
-def _robustness(tmp_path: Path) -> str:
+def _runs(tmp_path: Path, evaluated=()) -> list[Path]:
+    """Make Walker2d's run folders, one per seed and arm (control included); those of
+    `evaluated` (arm, seed) get their suites/paper.csv. Returns the AdaRL and SAC runs."""
     w = tmp_path / "results/paper-schedule-walker2d/walker2d"
+    runs = []
+    for arm in (*EVALUATED, "adarl-control-eq5"):
+        for seed in range(5):
+            run = w / arm / f"seeds-{seed}"
+            (run / "suites").mkdir(parents=True)
+            if (arm, seed) in evaluated:
+                (run / "suites/paper.csv").write_text("suite\n")
+            if arm in EVALUATED:
+                runs.append(run)
+    return runs
+
+
+def _robustness(runs) -> str:
     return (
-        f"evaluate {w}/adarl_rank_rule-cumulative/seeds-0-4 {w}/sac/seeds-0-4 --suite paper "
-        "--episodes 5 --workers 2 --no-progress"
+        f"evaluate {' '.join(map(str, runs))} --suite paper --episodes 5 --workers 2 --no-progress"
     )
 
 
 def test_the_sweeps_in_order_with_the_robustness_evaluation_after_walker2d(tmp_path):
+    runs = _runs(tmp_path)
     code, commands = _campaign(tmp_path)
     assert code == 0
     assert commands == [
-        _sweep(tmp_path, PRESETS[0]),
-        _sweep(tmp_path, PRESETS[1]),
-        _robustness(tmp_path),
-        _sweep(tmp_path, PRESETS[2]),
+        *(_sweep(tmp_path, s) for s in SWEEPS[:3]),
+        _robustness(runs),  # AdaRL's five seeds, then SAC's
+        _sweep(tmp_path, SWEEPS[3]),
     ]
 
 
-def test_a_finished_robustness_evaluation_is_not_repeated_and_a_half_one_is(tmp_path):
-    w = tmp_path / "results/paper-schedule-walker2d/walker2d"
-    for unit in ("adarl_rank_rule-cumulative", "sac"):
-        (w / unit / "seeds-0-4/suites").mkdir(parents=True)
-    (w / "sac/seeds-0-4/suites/paper.csv").write_text("suite\n")
-    assert _robustness(tmp_path) in _campaign(tmp_path)[1]  # one of the two has it
+def test_only_the_runs_without_their_robustness_evaluation_are_evaluated(tmp_path):
+    runs = _runs(tmp_path, evaluated={("sac", 0), ("adarl_rank_rule-cumulative", 3)})
+    todo = [r for r in runs if not (r / "suites/paper.csv").exists()]
+    assert len(todo) == 8 and _robustness(todo) in _campaign(tmp_path)[1]
     (tmp_path / "commands").unlink()
-    (w / "adarl_rank_rule-cumulative/seeds-0-4/suites/paper.csv").write_text("suite\n")
-    assert _robustness(tmp_path) not in _campaign(tmp_path)[1]
+    for run in todo:
+        (run / "suites/paper.csv").write_text("suite\n")
+    assert not any(c.startswith("evaluate") for c in _campaign(tmp_path)[1])
+
+
+def test_no_walker2d_runs_nothing_to_evaluate(tmp_path):
+    code, commands = _campaign(tmp_path)
+    assert code == 0 and commands == [_sweep(tmp_path, s) for s in SWEEPS]
 
 
 @pytest.mark.parametrize("code", [130, 2])
 def test_a_stopped_or_refused_sweep_ends_the_campaign(tmp_path, code):
-    assert _campaign(tmp_path, {PRESETS[1]: code}) == (
+    assert _campaign(tmp_path, {WALKER2D: code}) == (
         code,
-        [_sweep(tmp_path, PRESETS[0]), _sweep(tmp_path, PRESETS[1])],
+        [_sweep(tmp_path, s) for s in SWEEPS[:3]],
     )
 
 
 def test_the_walker2d_sweep_with_a_failed_unit_is_not_evaluated(tmp_path):
-    code, commands = _campaign(tmp_path, {PRESETS[1]: 1})  # 1: some unit failed
-    assert code == 0 and commands == [_sweep(tmp_path, p) for p in PRESETS]
+    _runs(tmp_path)
+    code, commands = _campaign(tmp_path, {WALKER2D: 1})  # 1: some unit failed
+    assert code == 0 and commands == [_sweep(tmp_path, s) for s in SWEEPS]
 
 
 @pytest.mark.parametrize(("code", "goes_on"), [(143, False), (130, False), (1, True)])
 def test_a_stopped_evaluation_ends_the_campaign_and_a_failed_one_does_not(tmp_path, code, goes_on):
+    runs = _runs(tmp_path)
     status, commands = _campaign(tmp_path, {"evaluate": code})
-    assert commands[-1] == (_sweep(tmp_path, PRESETS[2]) if goes_on else _robustness(tmp_path))
+    assert commands[-1] == (_sweep(tmp_path, SWEEPS[3]) if goes_on else _robustness(runs))
     assert status == (0 if goes_on else code)

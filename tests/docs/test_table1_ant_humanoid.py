@@ -3,6 +3,7 @@ analysis from them. Expected values are computed here by hand from the rows the 
 
 import csv
 import importlib.util
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -19,16 +20,17 @@ def script():
     return module
 
 
-def _unit(root, task, method, returns, last_step=300_000, truncations=None, fell=()):
+def _unit(root, task, method, returns, last_step=300_000, truncations=None, fell=(), seeds=None):
     """A unit whose seed s returns returns[s] + step/1e5 at every nominal evaluation; the seeds
-    in `fell` end one episode of their last evaluation at step 300, the others last 1,000."""
-    unit = root / task / method / "seeds-0-4"
+    in `fell` end one episode of their last evaluation at step 300, the others last 1,000. Its
+    seeds are 0, 1, ... in folder seeds-0-4, or `seeds` in folder seeds-<seeds joined by ->."""
+    unit = root / task / method / ("seeds-0-4" if seeds is None else "seeds-" + "-".join(map(str, seeds)))  # fmt: skip
     unit.mkdir(parents=True)
     with (unit / "eval.csv").open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["step", "seed", "dynamics", "episode", "return", "length"])
         for step in range(10_000, last_step + 1, 10_000):
-            for seed, r in enumerate(returns):
+            for seed, r in zip(seeds or range(len(returns)), returns, strict=True):
                 for episode, noise in enumerate((-1.0, 1.0)):  # mean over episodes: r
                     length = 300 if seed in fell and step == last_step and episode else 1000
                     w.writerow([step, seed, "nominal", episode, r + step / 1e5 + noise, length])
@@ -125,8 +127,9 @@ def test_survival_counts_with_fishers_test(script, tmp_path):
 def test_figure_draws_each_methods_mean_curve_with_the_best_parseval_only(script, tmp_path):
     sweep = tmp_path / "sweep"
     _unit(sweep, "ant", "sac", [100.0, 300.0])
-    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-03", [500.0, 500.0])
-    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-04", [700.0, 900.0])
+    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-03", [500.0] * 5)
+    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-04", [700.0, 900.0] * 2 + [800.0])
+    _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-05", [2000.0] * 4)  # 4 seeds: running
     _unit(sweep, "humanoid", "adarl", [50.0, 70.0], last_step=120_000)  # running: drawn as far
     script.export(sweep, tmp_path / "rows")
     found = script.curves(tmp_path / "rows")
@@ -153,8 +156,37 @@ def test_the_score_table_gives_each_units_training_time_from_its_train_csv(scrip
     script.export(tmp_path / "sweep", tmp_path / "rows")
     assert (tmp_path / "rows/ant/sac/seeds-0-4-train.csv.gz").exists()
     lines = script.report(script.load(tmp_path / "rows"))
-    assert any(line.startswith("| ant | sac | 2 | 300,000 |") and line.endswith("| 1.0 |") for line in lines)  # fmt: skip
+    assert any(line.startswith("| ant | sac | 2 | 300,000 (running) |") and line.endswith("| 1.0 |") for line in lines)  # fmt: skip
     assert any(line.startswith("| humanoid | sac |") and line.endswith("| — |") for line in lines)
     # no AdaRL unit: no exploratory comparison, and no empty table
     assert "None yet: AdaRL and a baseline must both finish on a task." in lines
     assert not any(line.startswith("| comparison |") for line in lines)
+
+
+def test_a_method_trained_one_seed_per_unit_is_finished_when_all_five_seeds_are(script, tmp_path):
+    sweep = tmp_path / "sweep"
+    sac = [1000.0, 1100.0, 900.0, 1050.0, 950.0]
+    _unit(sweep, "humanoid", "sac", sac)  # one unit of five seeds
+    for seed in (0, 1, 2):  # one unit per seed; seeds 3 and 4 not yet evaluated
+        _unit(sweep, "humanoid", "adarl", [2000.0 + seed], seeds=[seed])
+    _unit(sweep, "humanoid", "adarl", [2003.0], seeds=[3], last_step=120_000)
+    script.export(sweep, tmp_path / "rows")
+    exported = sorted(p.name for p in (tmp_path / "rows/humanoid/adarl").iterdir())
+    assert exported == [f"seeds-{s}-eval.csv.gz" for s in range(4)]
+    data = script.load(tmp_path / "rows")
+    adarl = data["humanoid"]["adarl"]
+    # seed 3 evaluated up to 120k: its last five at 80k..120k add 1.0
+    assert adarl["scores"] == pytest.approx({0: 2002.8, 1: 2003.8, 2: 2004.8, 3: 2004.0})
+    assert adarl["last_step"] == 120_000 and not script.is_finished(adarl)
+    assert script.is_finished(data["humanoid"]["sac"])
+    assert "| humanoid | adarl | 4 | 120,000 (running) |" in "\n".join(script.report(data))
+    # the last seed arrives and reaches the budget; seed 3 too: all five seeds, finished
+    shutil.rmtree(sweep / "humanoid/adarl/seeds-3")
+    _unit(sweep, "humanoid", "adarl", [2003.0], seeds=[3])
+    _unit(sweep, "humanoid", "adarl", [2004.0], seeds=[4])
+    script.export(sweep, tmp_path / "rows")
+    adarl = script.load(tmp_path / "rows")["humanoid"]["adarl"]
+    assert script.is_finished(adarl) and sorted(adarl["scores"]) == [0, 1, 2, 3, 4]
+    # three seeds at the budget are not "finished" either, nor a method with a sixth seed
+    assert not script.is_finished({"last_step": 300_000, "scores": {0: 1.0, 1: 1.0, 2: 1.0}})
+    assert not script.is_finished({"last_step": 300_000, "scores": dict.fromkeys(range(6), 1.0)})
