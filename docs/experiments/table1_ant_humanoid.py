@@ -5,8 +5,9 @@ rows out of the sweep, and the pre-registered analysis from those rows only.
     python docs/experiments/table1_ant_humanoid.py report          # prints the report's tables
     python docs/experiments/table1_ant_humanoid.py figure          # the learning curves
 
-`export` copies each unit's eval.csv, truncations.csv, episodes.csv and train.csv (gzip) to
-docs/experiments/table1-ant-humanoid/rows/<task>/<method>/ (never checkpoints), so that `report`
+`export` copies each finished unit's eval.csv, truncations.csv, episodes.csv and train.csv (gzip)
+to docs/experiments/table1-ant-humanoid/rows/<task>/<method>/ (never checkpoints; a unit still
+training is left for a later export), so that `report`
 and any referee recompute every number from the repository. `report` follows the
 pre-registration: the score of a seed is the mean of its last 5 nominal evaluations, each
 evaluation the mean return of its episodes; the primary tests are AdaRL − SAC on each task,
@@ -51,11 +52,16 @@ ADARL, SAC = "adarl", "sac"
 SEEDS = [0, 1, 2, 3, 4]
 
 
-def export(sweep: Path, rows: Path = ROWS) -> list[Path]:
-    """Copy the raw rows of every unit of `sweep` (task/method/seeds-*/) to `rows`, gzipped."""
-    written = []
+def export(sweep: Path, rows: Path = ROWS) -> tuple[list[Path], list[Path]]:
+    """Copy the raw rows of every finished unit of `sweep` (task/method/seeds-*/, with its `DONE`)
+    to `rows`, gzipped; a unit still training is left for a later export, so that no partial rows
+    are committed. Returns the files written and the units left."""
+    written, left = [], []
     for unit in sorted(sweep.glob("*/*/seeds-*")):
         task, method = unit.parts[-3], unit.parts[-2]
+        if not (unit / "DONE").is_file():
+            left.append(unit)
+            continue
         for name in FILES:
             source = unit / name
             if not source.is_file():
@@ -63,7 +69,7 @@ def export(sweep: Path, rows: Path = ROWS) -> list[Path]:
             target = rows / task / method / f"{unit.name}-{name}.gz"
             gzip_copy(source, target)
             written.append(target)
-    return written
+    return written, left
 
 
 def gzip_copy(source: Path, target: Path) -> None:
@@ -324,8 +330,10 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 0
     if argv[:1] == ["export"] and len(argv) == 2:
-        written = export(folder(argv[1]))
+        written, left = export(folder(argv[1]))
         print(f"wrote {len(written)} files under {ROWS}")
+        for unit in left:
+            print(f"left {unit}: still training (no DONE)")
         return 0
     if argv[:1] == ["report"] and len(argv) in (1, 2):
         print("\n".join(report(load(folder(argv[1]) if len(argv) == 2 else ROWS))))

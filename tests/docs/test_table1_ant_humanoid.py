@@ -41,6 +41,8 @@ def _unit(root, task, method, returns, last_step=300_000, truncations=None, fell
             w.writerow(["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"])
             w.writerows(truncations)
     (unit / "checkpoints").mkdir()  # never exported
+    if last_step >= 300_000:  # the run reached its budget (docs/run-format.md)
+        (unit / "DONE").write_text(f"{last_step}\n")
     return unit
 
 
@@ -69,7 +71,7 @@ def test_report_runs_the_primary_tests_only_when_both_tasks_finished(script, tmp
     lines = script.report(script.load(tmp_path / "rows"))
     text = "\n".join(lines)
     assert "Not computed until both tasks' AdaRL and SAC units finish (humanoid: running)" in text
-    assert "| humanoid | adarl | 5 | 120,000 (running) |" in text
+    assert "| humanoid | adarl |" not in text  # still training: not exported
     # exploratory: only the best Parseval (1e-04, mean 720) against AdaRL
     row = next(line for line in lines if line.startswith("| ant: adarl − sac-parseval"))
     assert "1e-04 (best of 3" in row
@@ -130,14 +132,14 @@ def test_figure_draws_each_methods_mean_curve_with_the_best_parseval_only(script
     _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-03", [500.0] * 5)
     _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-04", [700.0, 900.0] * 2 + [800.0])
     _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-05", [2000.0] * 4)  # 4 seeds: running
-    _unit(sweep, "humanoid", "adarl", [50.0, 70.0], last_step=120_000)  # running: drawn as far
+    _unit(sweep, "humanoid", "adarl", [50.0, 70.0])
     script.export(sweep, tmp_path / "rows")
     found = script.curves(tmp_path / "rows")
     assert sorted(found["ant"]) == ["sac", "sac-parseval 1e-04 (best of 3)"]
     # the evaluation's mean over its two episodes (noise -1, +1): returns[s] + step/1e5
     sac = found["ant"]["sac"]
     assert sac[sac.step == 20_000].sort_values("seed")["return"].tolist() == pytest.approx([100.2, 300.2])  # fmt: skip
-    assert found["humanoid"]["adarl"].step.max() == 120_000
+    assert found["humanoid"]["adarl"].step.max() == 300_000
     written = script.figure(tmp_path / "rows", tmp_path / "fig" / "curves")
     assert sorted(p.name for p in written) == ["curves.pdf", "curves.png"]
     with pytest.raises(SystemExit) as stopped:
@@ -170,16 +172,16 @@ def test_a_method_trained_one_seed_per_unit_is_finished_when_all_five_seeds_are(
     for seed in (0, 1, 2):  # one unit per seed; seeds 3 and 4 not yet evaluated
         _unit(sweep, "humanoid", "adarl", [2000.0 + seed], seeds=[seed])
     _unit(sweep, "humanoid", "adarl", [2003.0], seeds=[3], last_step=120_000)
-    script.export(sweep, tmp_path / "rows")
+    written, left = script.export(sweep, tmp_path / "rows")
+    assert left == [sweep / "humanoid/adarl/seeds-3"]  # still training: left for later
     exported = sorted(p.name for p in (tmp_path / "rows/humanoid/adarl").iterdir())
-    assert exported == [f"seeds-{s}-eval.csv.gz" for s in range(4)]
+    assert exported == [f"seeds-{s}-eval.csv.gz" for s in range(3)]
     data = script.load(tmp_path / "rows")
     adarl = data["humanoid"]["adarl"]
-    # seed 3 evaluated up to 120k: its last five at 80k..120k add 1.0
-    assert adarl["scores"] == pytest.approx({0: 2002.8, 1: 2003.8, 2: 2004.8, 3: 2004.0})
-    assert adarl["last_step"] == 120_000 and not script.is_finished(adarl)
+    assert adarl["scores"] == pytest.approx({0: 2002.8, 1: 2003.8, 2: 2004.8})
+    assert adarl["last_step"] == 300_000 and not script.is_finished(adarl)
     assert script.is_finished(data["humanoid"]["sac"])
-    assert "| humanoid | adarl | 4 | 120,000 (running) |" in "\n".join(script.report(data))
+    assert "| humanoid | adarl | 3 | 300,000 (running) |" in "\n".join(script.report(data))
     # the last seed arrives and reaches the budget; seed 3 too: all five seeds, finished
     shutil.rmtree(sweep / "humanoid/adarl/seeds-3")
     _unit(sweep, "humanoid", "adarl", [2003.0], seeds=[3])
