@@ -17,8 +17,10 @@ PY=${CAMPAIGN_PYTHON:-/work/main/.venv/bin/python}
 R=${CAMPAIGN_RESULTS:-/work/main/results}
 mkdir -p "$R"
 # From 2026-12-05 the sweeps of more than a session's units run one seed per unit (campaign.md,
-# "One seed per unit"): the sweep files beside this script; Humanoid first (the longest units).
-for sweep in "$E/table1-ant-humanoid/table1-humanoid.yaml" "$E/table1-ant-humanoid/table1-ant-rest.yaml" \
+# "One seed per unit"): the sweep files beside this script; Humanoid first (the longest units);
+# RNAC, whose seeds share a vmapped update, in the preset's units of five.
+T1=$E/table1-ant-humanoid
+for sweep in "$T1/table1-humanoid.yaml" "$T1/table1-ant-rest.yaml" "$T1/table1-rnac.yaml" \
   "$E/paper-schedule-walker2d/paper-schedule-walker2d.yaml" fixed-rank-power; do
   name=$(basename "$sweep" .yaml)
   echo "== $(date -u +%FT%TZ) $name"

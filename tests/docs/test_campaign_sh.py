@@ -13,10 +13,11 @@ SCRIPT = EXPERIMENTS / "campaign.sh"
 SWEEPS = (
     str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid.yaml"),
     str(EXPERIMENTS / "table1-ant-humanoid/table1-ant-rest.yaml"),
+    str(EXPERIMENTS / "table1-ant-humanoid/table1-rnac.yaml"),
     str(EXPERIMENTS / "paper-schedule-walker2d/paper-schedule-walker2d.yaml"),
     "fixed-rank-power",
 )
-WALKER2D = SWEEPS[2]
+WALKER2D = SWEEPS[3]
 EVALUATED = ("adarl_rank_rule-cumulative", "sac")  # the control is not (paper-schedule-walker2d.md)
 
 
@@ -77,9 +78,9 @@ def test_the_sweeps_in_order_with_the_robustness_evaluation_after_walker2d(tmp_p
     code, commands = _campaign(tmp_path)
     assert code == 0
     assert commands == [
-        *(_sweep(tmp_path, s) for s in SWEEPS[:3]),
+        *(_sweep(tmp_path, s) for s in SWEEPS[:4]),
         _robustness(runs),  # AdaRL's five seeds, then SAC's
-        _sweep(tmp_path, SWEEPS[3]),
+        _sweep(tmp_path, SWEEPS[4]),
     ]
 
 
@@ -102,7 +103,7 @@ def test_no_walker2d_runs_nothing_to_evaluate(tmp_path):
 def test_a_stopped_or_refused_sweep_ends_the_campaign(tmp_path, code):
     assert _campaign(tmp_path, {WALKER2D: code}) == (
         code,
-        [_sweep(tmp_path, s) for s in SWEEPS[:3]],
+        [_sweep(tmp_path, s) for s in SWEEPS[:4]],
     )
 
 
@@ -116,5 +117,5 @@ def test_the_walker2d_sweep_with_a_failed_unit_is_not_evaluated(tmp_path):
 def test_a_stopped_evaluation_ends_the_campaign_and_a_failed_one_does_not(tmp_path, code, goes_on):
     runs = _runs(tmp_path)
     status, commands = _campaign(tmp_path, {"evaluate": code})
-    assert commands[-1] == (_sweep(tmp_path, SWEEPS[3]) if goes_on else _robustness(runs))
+    assert commands[-1] == (_sweep(tmp_path, SWEEPS[4]) if goes_on else _robustness(runs))
     assert status == (0 if goes_on else code)
