@@ -154,7 +154,8 @@ def make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
 
 
 def _make_update(config: RNACConfig, low: np.ndarray, high: np.ndarray):
-    """The PPO/RNAC update of one seed on one rollout, jitted and vmapped over seeds:
+    """The PPO/RNAC update of one seed on one rollout, jitted and vmapped over seeds (the
+    learner passes one seed at a time, so that a seed's numbers do not depend on the others):
     `update(states, batches, keys, lr, weight_reg) -> (states, metrics, keys)`; `weight_reg` is
     the IPM coefficient (0 for ds).
 

@@ -1,7 +1,8 @@
 """RNAC's learner for the training loop (`adarl.train.loop`; the maths is `adarl.algos.rnac`):
 every seed steps its own environment on the host with a NumPy copy of its policy, double
 sampling (`ds`) values candidate next states in a second simulator, and every `rollout_steps`
-all seeds are updated at once by the jitted, seed-vmapped update. The host state (observation
+each seed is updated by the jitted update, one call per seed, so that a seed's numbers never
+depend on the seeds beside it. The host state (observation
 and reward normalisers, the rollout being collected) is the on-policy `Host` of NumPy arrays
 (`adarl.algos.onpolicy`); checkpoints hold it with the networks, the optimisers and the key
 states (the loop adds the generators and the MuJoCo states), so a resumed run continues exactly
@@ -10,7 +11,10 @@ states (the loop adds the generators and the MuJoCo states), so a resumed run co
 
 from __future__ import annotations
 
+import operator
+
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from adarl.algos import schedule
@@ -188,13 +192,25 @@ class RNACLearner:
         return Advance(step, episodes, due(config, step))
 
     def learn(self, step: int) -> None:
-        """Update every seed on its full rollout, vmapped; the learning rate decays linearly
-        from the previous update's step, as in the original."""
-        lr = schedule.rnac_learning_rate(self.config, step)
-        self.state, metrics, self.update_keys = self.update(
-            self.state, self.host.batch(), self.update_keys, np.float32(lr), self.weight_reg
-        )
-        self.host.metrics = np.asarray(metrics)
+        """Update every seed on its full rollout; the learning rate decays linearly from the
+        previous update's step, as in the original. Each seed is its own call of the update (a
+        batch of one): one call over all seeds batches their matmuls, which sum in another order,
+        so a seed's numbers would change in the last bits with the seeds beside it."""
+        lr, batch = np.float32(schedule.rnac_learning_rate(self.config, step)), self.host.batch()
+        states, metrics, keys = [], [], []
+        for i in range(len(self.seeds)):
+            lane = slice(i, i + 1)
+            state, m, key = self.update(
+                jax.tree.map(operator.itemgetter(lane), self.state),
+                {name: rows[lane] for name, rows in batch.items()},
+                self.update_keys[lane],
+                lr,
+                self.weight_reg,
+            )
+            states.append(state), metrics.append(m), keys.append(key)
+        self.state = jax.tree.map(lambda *x: jnp.concatenate(x), *states)
+        self.update_keys = jnp.concatenate(keys)
+        self.host.metrics = np.concatenate([np.asarray(m) for m in metrics])
         self.params = host_params(self.state.actor, self.state.critic)
 
     def parameters_finite(self) -> bool:
