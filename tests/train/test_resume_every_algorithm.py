@@ -2,7 +2,8 @@
 test_deterministic.py): a tiny run killed between two checkpoints and resumed (reading every
 array of its checkpoint memory-mapped), or stopped there by SIGTERM (a checkpoint where it stops)
 and resumed, writes the same CSV rows, spectra, final checkpoint arrays and policy files as the
-same run uninterrupted."""
+same run uninterrupted. And a seed's numbers are its own (the lane promise,
+docs/algorithms.md): seed 1 trained alone writes what it writes beside seed 0."""
 
 import json
 import os
@@ -194,3 +195,41 @@ def assert_same_run(full, other, algo):
     # (the CSV offsets differ by the width of the steps_per_s column: wall-clock)
     for key in ("rng_states", "env_states", "config", "seeds", "step"):
         assert meta_a[key] == meta_b[key], key
+
+
+@pytest.mark.parametrize("algo", registry.ALGOS)
+def test_a_seed_trained_alone_writes_what_it_writes_beside_another(algo, full_run, tmp_path):
+    """Seed 1 alone and seed 1 of the two-seed run: the same CSV rows, spectra, policy files and
+    final checkpoint arrays (its slice of each array stacked over seeds)."""
+    import dataclasses
+
+    config = _config(algo)
+    assert config.seeds == (0, 1)
+    beside, alone = full_run(algo), tmp_path / "alone"
+    trainer(algo)(dataclasses.replace(config, seeds=(1,)), alone, progress=False)
+    for name in sorted(p.name for p in beside.glob("*.csv")):
+        mine = [r for r in _csv(beside, name) if r.get("seed") == "1"]
+        assert _csv(alone, name) == mine, name
+    spectra = sorted(alone.glob("spectra/*.npz"))
+    assert bool(spectra) == algo.startswith("adarl")  # their budgets truncate
+    for path in spectra:
+        with np.load(path) as a, np.load(beside / "spectra" / path.name) as b:
+            for key in a.files:
+                np.testing.assert_array_equal(a[key][0], b[key][1], err_msg=f"{path.name} {key}")
+    a_dir, b_dir = _final(alone), _final(beside)
+    assert a_dir.name == b_dir.name
+    policies = sorted(a_dir.glob("*policy_seed_1.npz"))
+    assert policies and not list(a_dir.glob("*policy_seed_0.npz"))
+    for path in policies:
+        assert path.read_bytes() == (b_dir / path.name).read_bytes(), path.name
+    with np.load(a_dir / "arrays.npz") as a, np.load(b_dir / "arrays.npz") as b:
+        for key in a.files:
+            value = a[key]
+            if key.startswith("env/0/"):  # the environment's state: its own entries per seed
+                np.testing.assert_array_equal(b["env/1/" + key[6:]], value, err_msg=key)
+            elif key.startswith("buffer/") and value.ndim > 1:  # rows saved: as many as the
+                mine = b[key][1]  # fullest seed's buffer needs; past the seed's own, zeros
+                np.testing.assert_array_equal(mine[: len(value[0])], value[0], err_msg=key)
+                assert not mine[len(value[0]) :].any(), key
+            else:  # stacked over seeds
+                np.testing.assert_array_equal(b[key][1], value[0], err_msg=key)
