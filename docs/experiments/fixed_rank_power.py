@@ -5,8 +5,9 @@ pre-registered analysis from those rows only, and the power it was planned with.
     python docs/experiments/fixed_rank_power.py report          # prints the report's tables
     python docs/experiments/fixed_rank_power.py power           # the planning table (~1 min)
 
-`export` copies each unit's eval.csv and episodes.csv (gzip) to
-docs/experiments/fixed-rank-power/rows/hopper/<method>/ (never checkpoints). `report` follows the
+`export` copies each finished unit's eval.csv and episodes.csv (gzip) to
+docs/experiments/fixed-rank-power/rows/hopper/<method>/ (never checkpoints; a unit still training
+is named and left for a later export). `report` follows the
 pre-registration: a seed's score is the mean of its last 5 nominal evaluations (260k–300k); the
 primary tests are rank 7 − rank 64 and rank 13 − rank 64, each the two-sided exact permutation
 test of the difference of means (all C(20, 10) = 184,756 splits of 10 vs 10 seeds), Holm over the
@@ -90,20 +91,20 @@ def _row(name: str, c: dict, holm_p: str) -> str:
 
 
 def report(data: dict[int, dict]) -> list[str]:
+    def finished(rank):
+        d = data.get(rank)
+        return d is not None and d["last_step"] >= BUDGET and len(d["scores"]) == SEEDS
+
     lines = ["### Scores (mean of the last 5 nominal evaluations per seed)", ""]
     lines += ["| rank | seeds | last step | mean ± SD | hop | per seed |", "| ---: | ---: | ---: | ---: | ---: | --- |"]  # fmt: skip
     for rank, d in sorted(data.items()):
         v = np.array([d["scores"][s] for s in sorted(d["scores"])])
-        state = f"{d['last_step']:,}" + ("" if d["last_step"] >= BUDGET else " (running)")
+        state = f"{d['last_step']:,}" + ("" if finished(rank) else " (running)")
         spread = f"{v.mean():,.0f} ± {v.std(ddof=1):,.0f}" if v.size > 1 else "—"
         per_seed = ", ".join(f"{x:,.0f}" for x in v)
         hops = stats.count_above(v, HOP)
         lines.append(f"| {rank} | {v.size} | {state} | {spread} | {hops} | {per_seed} |")
     lines.append("")
-
-    def finished(rank):
-        d = data.get(rank)
-        return d is not None and d["last_step"] >= BUDGET and len(d["scores"]) == SEEDS
 
     def arm(rank):
         d = data[rank]["scores"]
@@ -199,8 +200,10 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 0
     if argv[:1] == ["export"] and len(argv) == 2:
-        written = export(folder(argv[1]), ROWS)
+        written, left = export(folder(argv[1]), ROWS)
         print(f"wrote {len(written)} files under {ROWS}")
+        for unit in left:
+            print(f"left {unit}: still training (no DONE)")
         return 0
     if argv[:1] == ["report"] and len(argv) in (1, 2):
         print("\n".join(report(load(folder(argv[1]) if len(argv) == 2 else ROWS))))

@@ -86,16 +86,17 @@ def test_sac_state_gone_non_finite_between_log_points_is_never_checkpointed(
 
 
 # ----------------------------------------------------------------------------- RNAC
+# each poisons the first (only) seed of one call of the update: RNAC updates one seed a call
 RNAC_POISON = {
     "actor_mu": (
-        lambda s: s._replace(actor_opt=(s.actor_opt[0], s.actor_opt[1]._replace(mu=poison_one(s.actor_opt[1].mu, np.inf, 1)))),
+        lambda s: s._replace(actor_opt=(s.actor_opt[0], s.actor_opt[1]._replace(mu=poison_one(s.actor_opt[1].mu, np.inf, 0)))),
         "actor optimiser state",
     ),
     "critic_nu": (
-        lambda s: s._replace(critic_opt=(s.critic_opt[0], s.critic_opt[1]._replace(nu=poison_one(s.critic_opt[1].nu, np.inf, 1)))),
+        lambda s: s._replace(critic_opt=(s.critic_opt[0], s.critic_opt[1]._replace(nu=poison_one(s.critic_opt[1].nu, np.inf, 0)))),
         "critic optimiser state",
     ),
-    "actor": (lambda s: s._replace(actor=poison_one(s.actor, np.nan, 1)), "actor parameters"),
+    "actor": (lambda s: s._replace(actor=poison_one(s.actor, np.nan, 0)), "actor parameters"),
 }  # fmt: skip
 
 
@@ -116,7 +117,8 @@ def test_rnac_state_gone_non_finite_between_log_points_is_never_checkpointed(
         def poisoned(state, *rest):
             state, *out = update(state, *rest)
             calls.append(1)
-            return (poison(state) if len(calls) == 3 else state, *out)  # the update at step 768
+            # the update at step 768 (the third), its call for seed 1 (two calls an update)
+            return (poison(state) if len(calls) == 6 else state, *out)
 
         return poisoned
 
