@@ -2,11 +2,10 @@
 every seed steps its own environment on the host with a NumPy copy of its policy, double
 sampling (`ds`) values candidate next states in a second simulator, and every `rollout_steps`
 each seed is updated by the jitted update, one call per seed, so that a seed's numbers never
-depend on the seeds beside it. The host state (observation
-and reward normalisers, the rollout being collected) is the on-policy `Host` of NumPy arrays
-(`adarl.algos.onpolicy`); checkpoints hold it with the networks, the optimisers and the key
-states (the loop adds the generators and the MuJoCo states), so a resumed run continues exactly
-(docs/run-format.md). Reads top to bottom: the double-sampling simulator, the learner.
+depend on the seeds beside it. The host state (observation and reward normalisers, the rollout
+being collected) is the on-policy `Host` of NumPy arrays (`adarl.algos.onpolicy`); checkpoints
+hold it with the networks, the optimisers and the key states (the loop adds the generators and
+the MuJoCo states), so a resumed run continues exactly (docs/run-format.md). Reads top to bottom: the double-sampling simulator, the learner.
 """
 
 from __future__ import annotations
@@ -207,7 +206,9 @@ class RNACLearner:
                 lr,
                 self.weight_reg,
             )
-            states.append(state), metrics.append(m), keys.append(key)
+            states.append(state)
+            metrics.append(m)
+            keys.append(key)
         self.state = jax.tree.map(lambda *x: jnp.concatenate(x), *states)
         self.update_keys = jnp.concatenate(keys)
         self.host.metrics = np.concatenate([np.asarray(m) for m in metrics])
