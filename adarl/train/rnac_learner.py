@@ -5,7 +5,8 @@ each seed is updated by the jitted update, one call per seed, so that a seed's n
 depend on the seeds beside it. The host state (observation and reward normalisers, the rollout
 being collected) is the on-policy `Host` of NumPy arrays (`adarl.algos.onpolicy`); checkpoints
 hold it with the networks, the optimisers and the key states (the loop adds the generators and
-the MuJoCo states), so a resumed run continues exactly (docs/run-format.md). Reads top to bottom: the double-sampling simulator, the learner.
+the MuJoCo states), so a resumed run continues exactly (docs/run-format.md). Reads top to
+bottom: the double-sampling simulator, the learner.
 """
 
 from __future__ import annotations
