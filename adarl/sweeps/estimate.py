@@ -4,10 +4,11 @@ and with `--dry-run`.
 A unit's time is a start-up plus its remaining environment steps, summed over its seeds, divided
 by a measured rate in seed-steps per second of wall time (what a sweep unit pinned to its
 `cpus_per_unit` cores achieved, evaluations, checkpoints, truncations and compilation included).
-The sweep's time is that of the runner's schedule: each free slot takes the ready unit with the
-longest critical path (its own time left, or the time until its parent reaches a fork point plus
-that fork's, when longer), a fork unit is ready once its parent has reached the fork point (its
-share of the parent's time). Rates come, most specific first, from the unit's own run folder (a
+The sweep's time is that of the runner's schedule (`start_key`): each free slot takes a resumed
+unit first, the nearest to done first, then the ready unit with the longest critical path (its
+own time left, or the time until its parent reaches a fork point plus that fork's, when longer);
+a fork unit is ready once its parent has reached the fork point (its share of the parent's
+time). Rates come, most specific first, from the unit's own run folder (a
 resumed sweep),
 from other runs of the same algorithm on the same task in the sweep folder, and from the sweep
 units measured on this 2-core machine and shipped in `throughput.csv` (the committed
@@ -79,6 +80,7 @@ class Estimate:
     units: tuple[UnitEstimate, ...]
     sources: tuple[str, ...]
     critical_paths: tuple[tuple[str, float], ...] = ()  # (unit id, seconds): the runner's order
+    resumed: tuple[str, ...] = ()  # units with a checkpoint to resume from: they start first
 
     @property
     def borrowed(self) -> int:
@@ -162,17 +164,27 @@ def critical_paths(jobs: list[tuple[str, float, str | None, float]]) -> dict[str
     return paths
 
 
+def start_key(seconds_left: float, path: float, resumed: bool, index: int) -> tuple:
+    """The runner's order among ready units, smallest first: a resumed unit (one with a
+    checkpoint) before any other, the nearest to done first, since a lost machine loses the
+    training it holds; then the longest critical path (`critical_paths`), so that a long unit
+    does not start last and run alone at the end; file order (`index`) among equals."""
+    return (0, seconds_left, index) if resumed else (1, -path, index)
+
+
 def fork_schedule_seconds(
     jobs: list[tuple[str, float, str | None, float]],
     slots: int,
     by_critical_path: bool = True,
     capacity: float | None = None,
+    resumed: frozenset[str] = frozenset(),
 ) -> float:
     """Wall time of the runner's schedule of `jobs` (id, duration, parent id or None, seconds of
     the parent's work after which it may start), listed in file order. A fork is ready once its
     parent has done that much work (at once if its parent is not in `jobs`); each free slot takes
-    the ready job with the longest critical path (`critical_paths`; file order among equals), or
-    with `by_critical_path` false the one that became ready first (file order at the start).
+    the ready job first in `start_key` order (the `resumed` ones, nearest to done first, then the
+    longest critical path), or with `by_critical_path` false the one that became ready first
+    (file order at the start).
 
     Durations are seconds of work at the measured rate, which `capacity` jobs at once sustain
     (cores ÷ cpus_per_unit; None: every slot). With k > `capacity` jobs running, the cores are
@@ -196,7 +208,11 @@ def fork_schedule_seconds(
 
     while ready or running:
         while ready and len(running) < max(1, slots):
-            job = min(ready, key=lambda j: (-paths[j[0]], index[j[0]])) if paths else ready[0]
+            job = (
+                min(ready, key=lambda j: start_key(j[1], paths[j[0]], j[0] in resumed, index[j[0]]))
+                if paths
+                else ready[0]
+            )
             ready.remove(job)
             running[job[0]] = [job, 0.0]
             ready.extend(release(job[0], 0.0, False))  # forks at the parent's very start
@@ -231,9 +247,13 @@ def estimate(
     measurements and those of the runs already in the sweep folder (`here`, by unit id). While
     more units run than `cores` hold (k × cpus_per_unit > `cores`), they share the cores and each
     runs at cores / (k × cpus_per_unit) of its measured rate (the measurements had their cores to
-    themselves). The schedule is the runner's, critical path first, or with
-    `by_critical_path` false the file order (how sweeps ran before the runner ordered them)."""
+    themselves). The schedule is the runner's (`start_key`: units with fewer steps left than
+    their budget resume first, then critical path first), or with `by_critical_path` false the
+    file order (how sweeps ran before the runner ordered them)."""
     here = here or {}
+    resumed = tuple(
+        u.id for u in sweep.units if 0 < remaining.get(u.id, 0) < u.total_steps - u.fork_step
+    )
     units, sources = [], set()
     for unit in sweep.units:
         steps = remaining.get(unit.id, unit.total_steps - unit.fork_step)
@@ -261,13 +281,18 @@ def estimate(
         jobs.append((unit.id, seconds[unit.id], parent, after))
     return Estimate(
         seconds=fork_schedule_seconds(
-            jobs, slots, by_critical_path, cores / sweep.cpus_per_unit if cores else None
+            jobs,
+            slots,
+            by_critical_path,
+            cores / sweep.cpus_per_unit if cores else None,
+            frozenset(resumed),
         ),
         unit_seconds=sum(todo),
         slots=slots,
         units=tuple(units),
         sources=tuple(sorted(sources)),
         critical_paths=tuple(critical_paths(jobs).items()),
+        resumed=resumed,
     )
 
 
@@ -371,8 +396,26 @@ def for_sweep(sweep: Sweep, out: Path, slots: int, cores: int | None = None) -> 
 
 def unit_critical_paths(sweep: Sweep, out: Path) -> dict[str, float]:
     """Each unfinished unit's critical path (seconds on its own slot, `critical_paths`), by unit
-    id; what the runner orders the units by. A ValueError if no measurement exists."""
+    id. A ValueError if no measurement exists."""
     return dict(for_sweep(sweep, out, 1).critical_paths)
+
+
+def start_order(sweep: Sweep, out: Path) -> list[Unit]:
+    """The units in the order the runner starts them (`start_key`). Without any throughput
+    measurement, resumed units go first by steps left, then the others in file order."""
+    left = {u.id: remaining_steps(out, u) for u in sweep.units}
+    resumed = {u.id for u in sweep.units if 0 < left[u.id] < u.total_steps - u.fork_step}
+    try:
+        result = for_sweep(sweep, out, 1)
+        seconds: dict[str, float] = {u.unit_id: u.seconds for u in result.units}
+        paths = dict(result.critical_paths)
+    except (ValueError, OSError):  # no throughput measurement to go by
+        seconds, paths = {uid: float(n) for uid, n in left.items()}, {}
+    index = {u.id: i for i, u in enumerate(sweep.units)}
+    return sorted(
+        sweep.units,
+        key=lambda u: start_key(seconds[u.id], paths.get(u.id, 0.0), u.id in resumed, index[u.id]),
+    )
 
 
 def measurements_of(sweep_dir: Path, source: str) -> list[Measurement]:

@@ -14,12 +14,14 @@ Re-running the same command is how a sweep resumes: units whose run folder has D
 the others are queued again and each attempt resumes from its run's newest checkpoint
 (adarl.sweeps.worker decides that, under the unit's lock).
 
-The runner hands the executor at most one unit per slot. Each free slot takes the ready unit with
-the longest critical path (by `adarl.sweeps.estimate`: its own time left, or the time until it
-reaches a fork point plus that fork's time, when longer), so that a long unit never starts last
-and runs alone at the end, and a unit that others fork from starts before an independent unit of
-the same length. A fork unit (`fork: {from, at}`) becomes ready when its parent unit has written
-the checkpoint it starts from, and fails if its parent fails or finishes without it.
+The runner hands the executor at most one unit per slot. Each free slot takes first a unit that
+resumes from a checkpoint, the nearest to done first (a lost machine loses the training it
+holds), then the ready unit with the longest critical path (by `adarl.sweeps.estimate`: its own
+time left, or the time until it reaches a fork point plus that fork's time, when longer), so that
+a long unit never starts last and runs alone at the end, and a unit that others fork from starts
+before an independent unit of the same length. A fork unit (`fork: {from, at}`) becomes ready
+when its parent unit has written the checkpoint it starts from, and fails if its parent fails or
+finishes without it.
 """
 
 from __future__ import annotations
@@ -158,7 +160,9 @@ class SweepRun:
         self.skipped = 0
         self.waiting: list[Unit] = []  # fork units whose parent has not reached the fork point
         self.ready: list[Unit] = []  # queued units not yet handed to the executor
-        self.order = {u.id: i for i, u in enumerate(critical_path_first(sweep, out))}
+        from adarl.sweeps.estimate import start_order
+
+        self.order = {u.id: i for i, u in enumerate(start_order(sweep, out))}
 
     # ------------------------------------------------------------------ loop
     def run(self) -> int:
@@ -217,7 +221,7 @@ class SweepRun:
         return self.summary(time.monotonic() - start)
 
     def dispatch(self) -> None:
-        """Hand ready units to the executor while it has a free slot, critical path first."""
+        """Hand ready units to the executor while it has a free slot, in `estimate.start_order`."""
         while self.ready and len(self.in_flight) < self.executor.slots:
             unit = min(self.ready, key=lambda u: self.order[u.id])
             self.ready.remove(unit)
@@ -399,19 +403,6 @@ class SweepRun:
 
 
 # ----------------------------------------------------------------------------- helpers
-def critical_path_first(sweep: Sweep, out: Path) -> list[Unit]:
-    """The units, those with the longest estimated critical path first (`estimate.critical_paths`;
-    file order among equals and for finished units, and throughout when no measurement gives an
-    estimate)."""
-    from adarl.sweeps import estimate
-
-    try:
-        paths = estimate.unit_critical_paths(sweep, out)
-    except (ValueError, OSError):  # no throughput measurement to go by
-        return list(sweep.units)
-    return sorted(sweep.units, key=lambda u: -paths.get(u.id, 0.0))
-
-
 def fork_ready(out: Path, unit: Unit) -> bool:
     """Has the parent of fork unit `unit` written the checkpoint the fork starts from?"""
     from adarl.train import fork

@@ -247,6 +247,23 @@ def test_a_fork_starts_when_its_parent_reaches_the_fork_point():
     assert estimate.fork_schedule_seconds([("b", 30.0, "gone", 60.0)], 1) == 30  # parent done
 
 
+def test_resumed_jobs_start_first_the_nearest_to_done_first():
+    """Two slots. Critical path first: L (0-100), s (0-60); at 60 t (the longer, 60-110), at 100
+    r (100-140): 140. With r resumed: r (0-40), L (0-100); s (40-100), t (100-150): 150. With q
+    resumed too: q (0-20), r (0-40); L (20-120), s (40-100), t (100-150): 150."""
+    jobs = [("L", 100.0, None, 0.0), ("s", 60.0, None, 0.0), ("t", 50.0, None, 0.0),
+            ("r", 40.0, None, 0.0), ("q", 20.0, None, 0.0)]  # fmt: skip
+    assert estimate.fork_schedule_seconds(jobs[:4], 2) == 140
+    assert estimate.fork_schedule_seconds(jobs[:4], 2, resumed=frozenset({"r"})) == 150
+    assert estimate.fork_schedule_seconds(jobs, 2, resumed=frozenset({"r", "q"})) == 150
+    seconds = {j[0]: j[1] for j in jobs}  # no forks: each job's critical path is its duration
+
+    def key(uid):
+        return estimate.start_key(seconds[uid], seconds[uid], uid in "rq", "Lstrq".index(uid))
+
+    assert sorted("Lstrq", key=key) == ["q", "r", "L", "s", "t"]
+
+
 def test_a_fork_unit_costs_the_steps_after_its_fork_point():
     parent = _unit("hopper/adarl/seeds-0-2")
     child = Unit("hopper/c/seeds-0-2", "hopper", "adarl-control", "c", (0, 1, 2), 120_000,

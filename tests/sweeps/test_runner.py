@@ -114,6 +114,25 @@ def test_the_longest_units_start_first(tmp_path):
     assert _uids(backend) == ["walker2d/sac/seeds-0", "hopper/sac/seeds-0"]  # file order reversed
 
 
+@pytest.mark.parametrize("measured", [True, False], ids=["with-rates", "without-rates"])
+def test_resumed_units_start_first_the_nearest_to_done_first(tmp_path, monkeypatch, measured):
+    """walker2d is the longest unit, but hopper (500 of 1,000 steps left) and ant (1,000 of 2,000)
+    hold checkpoints: they resume first, hopper first (fewer steps, and a faster task)."""
+    if not measured:
+        monkeypatch.setattr(estimate, "read_measurements", lambda: [])
+    doc = {"tasks": ["walker2d", "ant", "hopper"], "algos": ["sac"], "seeds": [0],
+           "preset": "smoke", "budget": {"hopper": 1000, "walker2d": 5000, "ant": 2000}}  # fmt: skip
+    sweep = spec.parse(doc, source="t.yaml", default_name="t")
+    for uid, step in [("hopper/sac/seeds-0", 500), ("ant/sac/seeds-0", 1000)]:
+        point = tmp_path / "out" / uid / "checkpoints" / f"step_{step:012d}"
+        point.mkdir(parents=True)
+        (point / "meta.json").write_text("{}")
+        (point / "arrays.npz").write_bytes(b"")
+    backend = WritingBackend(tmp_path / "out")
+    runner.run_sweep(sweep, tmp_path / "out", backend, runner.Options(progress_every=1e9))
+    assert _uids(backend) == ["hopper/sac/seeds-0", "ant/sac/seeds-0", "walker2d/sac/seeds-0"]
+
+
 FORK_SWEEP = {
     "tasks": ["hopper"],
     "algos": [
