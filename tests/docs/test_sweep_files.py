@@ -30,7 +30,7 @@ CAMPAIGN = {
     ),
     "paper-schedule-walker2d": (("paper-schedule-walker2d/paper-schedule-walker2d.yaml",), set()),
 }
-VMAPPED_SEEDS = {"rnac"}  # f7f5ab1's RNAC updates a run's seeds in one vmapped call
+PRESET_UNITS = {"rnac"}  # in the preset's units of five (f7f5ab1's RNAC vmapped a run's seeds)
 
 
 def _seed_units(units):
@@ -54,7 +54,7 @@ def test_each_sweep_file_trains_its_presets_units_one_seed_per_unit(preset):
     assert set(got) == set(expected) - finished
     for key, unit in got.items():
         of_preset = expected[key]
-        if unit.algo in VMAPPED_SEEDS:  # the preset's unit itself
+        if unit.algo in PRESET_UNITS:  # the preset's unit itself
             assert (unit.id, unit.config, unit.start) == (of_preset.id, of_preset.config, of_preset.start)  # fmt: skip
             continue
         assert len(unit.seeds) == 1, unit.id

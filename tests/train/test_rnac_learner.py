@@ -9,6 +9,7 @@ import shutil
 import jax
 import numpy as np
 import pytest
+from seed_slices import assert_seed_slice_equal
 
 from adarl.algos import onpolicy, rnac, rnac_config
 from adarl.errors import UsageError
@@ -224,11 +225,7 @@ def test_a_seed_gives_the_same_bits_alone_and_among_other_seeds(tmp_path, uncert
             np.testing.assert_array_equal(a[key], b[key], err_msg=f"{name} {key}")
     arrays_alone, _ = checkpoints.load_checkpoint(alone / last)
     arrays_group, _ = checkpoints.load_checkpoint(group / last)
-    for key, value in arrays_alone.items():
-        if key.startswith("env/0/"):  # the environment's state: its own entries per seed
-            np.testing.assert_array_equal(arrays_group["env/1/" + key[6:]], value, key)
-        else:  # stacked over seeds
-            np.testing.assert_array_equal(arrays_group[key][1], value[0], err_msg=key)
+    assert_seed_slice_equal(arrays_alone, arrays_group, index=1)
 
 
 # ----------------------------------------------------------------------------- bad input
