@@ -251,9 +251,7 @@ def estimate(
     their budget resume first, then critical path first), or with `by_critical_path` false the
     file order (how sweeps ran before the runner ordered them)."""
     here = here or {}
-    resumed = tuple(
-        u.id for u in sweep.units if 0 < remaining.get(u.id, 0) < u.total_steps - u.fork_step
-    )
+    resumed = tuple(u.id for u in sweep.units if resumes(u, remaining.get(u.id, 0)))
     units, sources = [], set()
     for unit in sweep.units:
         steps = remaining.get(unit.id, unit.total_steps - unit.fork_step)
@@ -369,6 +367,11 @@ def measure_run(run_dir: Path, unit_fields: dict, source: str) -> Measurement | 
     )
 
 
+def resumes(unit: Unit, steps_left: int) -> bool:
+    """Does a run of `unit` with `steps_left` steps per seed left resume from a checkpoint?"""
+    return 0 < steps_left < unit.total_steps - unit.fork_step
+
+
 def remaining_steps(out: Path, unit: Unit) -> int:
     """Steps per seed a run of `unit` still has to train: from its newest checkpoint."""
     from adarl.runs.checkpoints import checkpoint_dirs
@@ -403,14 +406,13 @@ def unit_critical_paths(sweep: Sweep, out: Path) -> dict[str, float]:
 def start_order(sweep: Sweep, out: Path) -> list[Unit]:
     """The units in the order the runner starts them (`start_key`). Without any throughput
     measurement, resumed units go first by steps left, then the others in file order."""
-    left = {u.id: remaining_steps(out, u) for u in sweep.units}
-    resumed = {u.id for u in sweep.units if 0 < left[u.id] < u.total_steps - u.fork_step}
     try:
         result = for_sweep(sweep, out, 1)
         seconds: dict[str, float] = {u.unit_id: u.seconds for u in result.units}
-        paths = dict(result.critical_paths)
+        paths, resumed = dict(result.critical_paths), set(result.resumed)
     except (ValueError, OSError):  # no throughput measurement to go by
-        seconds, paths = {uid: float(n) for uid, n in left.items()}, {}
+        seconds = {u.id: float(remaining_steps(out, u)) for u in sweep.units}
+        paths, resumed = {}, {u.id for u in sweep.units if resumes(u, int(seconds[u.id]))}
     index = {u.id: i for i, u in enumerate(sweep.units)}
     return sorted(
         sweep.units,
