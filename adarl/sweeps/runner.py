@@ -94,6 +94,11 @@ def plan_text(sweep: Sweep, out: Path, where: str) -> str:
             f"  {unit.id:<{width}}  {unit_state(out, unit):<22} "
             f"adarl train {' '.join(unit.train_args)}"
         )
+    from adarl.sweeps.estimate import remaining_steps, resumes, start_order
+
+    first = [u.id for u in start_order(sweep, out) if resumes(u, remaining_steps(out, u))]
+    if first:
+        lines.append(f"resumed first, the nearest to done first: {', '.join(first)}")
     steps = sum((u.total_steps - u.fork_step) * len(u.seeds) for u in sweep.units)
     forks = " (a fork's from its fork point on)" if any(u.fork_of for u in sweep.units) else ""
     lines.append(f"total: {steps:,} environment steps over all seeds{forks}")

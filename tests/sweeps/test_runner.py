@@ -128,6 +128,8 @@ def test_resumed_units_start_first_the_nearest_to_done_first(tmp_path, monkeypat
         point.mkdir(parents=True)
         (point / "meta.json").write_text("{}")
         (point / "arrays.npz").write_bytes(b"")
+    plan = runner.plan_text(sweep, tmp_path / "out", "here")
+    assert "resumed first, the nearest to done first: hopper/sac/seeds-0, ant/sac/seeds-0\n" in plan
     backend = WritingBackend(tmp_path / "out")
     runner.run_sweep(sweep, tmp_path / "out", backend, runner.Options(progress_every=1e9))
     assert _uids(backend) == ["hopper/sac/seeds-0", "ant/sac/seeds-0", "walker2d/sac/seeds-0"]
