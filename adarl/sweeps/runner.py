@@ -85,6 +85,8 @@ def unit_state(out: Path, unit: Unit) -> str:
 
 def plan_text(sweep: Sweep, out: Path, where: str) -> str:
     """The dry run: every unit, what it trains and what running it now would do."""
+    from adarl.sweeps.estimate import remaining_steps, resumes, start_order
+
     width = max(len(u.id) for u in sweep.units)
     lines = [
         f"sweep {sweep.name} ({sweep.source}): {len(sweep.units)} units on {where}, output {out}"
@@ -94,8 +96,6 @@ def plan_text(sweep: Sweep, out: Path, where: str) -> str:
             f"  {unit.id:<{width}}  {unit_state(out, unit):<22} "
             f"adarl train {' '.join(unit.train_args)}"
         )
-    from adarl.sweeps.estimate import remaining_steps, resumes, start_order
-
     first = [u.id for u in start_order(sweep, out) if resumes(u, remaining_steps(out, u))]
     if first:
         lines.append(f"resumed first, the nearest to done first: {', '.join(first)}")
