@@ -3,6 +3,7 @@ rows out of the sweep, and the pre-registered analysis from those rows only.
 
     python docs/experiments/table1_ant_humanoid.py export results/table1-ant-humanoid
     python docs/experiments/table1_ant_humanoid.py report          # prints the report's tables
+    python docs/experiments/table1_ant_humanoid.py report --write  # ... into table1-ant-humanoid.md
     python docs/experiments/table1_ant_humanoid.py figure          # the learning curves
 
 `export` copies each finished unit's eval.csv, truncations.csv, episodes.csv and train.csv (gzip)
@@ -17,7 +18,8 @@ AdaRL − each baseline (Parseval: the best of three by mean score, chosen after
 is exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
 A method whose five seeds have not all reached the budget (in one unit of 5 seeds, or in
 units of one seed, as the campaign ran them from 2026-12-05) is reported as running and enters
-no test. `figure`
+no test. `report --write` puts the tables into the report between its two markers, so that its
+numbers are the script's on the committed rows (a test checks they are). `figure`
 draws each method's nominal return over training per task (mean over seeds with its 95% t band,
 Parseval at its best coefficient) into table1-ant-humanoid/curves.png and .pdf, descriptive.
 """
@@ -36,10 +38,14 @@ import numpy as np
 from scipy import stats as st
 
 from adarl import stats
+from adarl.files import atomic_write_text
 from adarl.report.tables import p_text
 from adarl.sweeps.estimate import train_seconds
 
 HERE = Path(__file__).resolve().parent
+DOC = HERE / "table1-ant-humanoid.md"
+BEGIN = "<!-- report: begin (written by `python docs/experiments/table1_ant_humanoid.py report --write`) -->"  # fmt: skip
+END = "<!-- report: end -->"
 ROWS = HERE / "table1-ant-humanoid" / "rows"
 CURVES = HERE / "table1-ant-humanoid" / "curves"  # .png and .pdf
 FILES = ("eval.csv", "truncations.csv", "episodes.csv", "train.csv")
@@ -260,17 +266,19 @@ def report(data: dict) -> list[str]:
     lines.append("")
 
     lines += ["### Ranks the energy rule kept (AdaRL), per cut: min–max over seeds", ""]
-    lines += ["| task | layer | 2·d_a + 1 | " + " | ".join(f"cut {i}" for i in range(1, 5)) + " |"]
-    lines += ["| --- | --- | ---: |" + " ---: |" * 4]
+    lines += ["| task | layer | 2·d_a + 1 | seeds | " + " | ".join(f"cut {i}" for i in range(1, 5)) + " |"]  # fmt: skip
+    lines += ["| --- | --- | ---: | ---: |" + " ---: |" * 4]
     for task in TASKS:
-        rows = data.get(task, {}).get(ADARL, {}).get("truncations", [])
+        unit = data.get(task, {}).get(ADARL)
+        rows = unit["truncations"] if unit else []
+        seeds = f"{len({r['seed'] for r in rows})}" + ("" if is_finished(unit) else " (running)")
         by_layer = defaultdict(lambda: defaultdict(list))
         for r in rows:
             by_layer[r["layer"]][int(r["step"])].append(int(r["new_rank"]))
         for layer, by_step in sorted(by_layer.items()):
             cells = [f"{min(v)}–{max(v)}" for _, v in sorted(by_step.items())][:4]
             cells += ["—"] * (4 - len(cells))
-            lines.append(f"| {task} | {layer} | {2 * ACTION_DIM[task] + 1} | " + " | ".join(cells) + " |")  # fmt: skip
+            lines.append(f"| {task} | {layer} | {2 * ACTION_DIM[task] + 1} | {seeds} | " + " | ".join(cells) + " |")  # fmt: skip
     lines.append("")
     return lines
 
@@ -315,6 +323,30 @@ def figure(rows: Path = ROWS, stem: Path = CURVES) -> list[Path]:
     return figures.save_figure(figures.training_curves(curves(rows)), stem)
 
 
+def _split(doc: Path) -> tuple[str, str, str]:
+    """(before, between, after) the report's markers of `doc`; a doc without both, in order, is a
+    one-line error and exit 2."""
+    head, begin, rest = doc.read_text(encoding="utf-8").partition(BEGIN)
+    body, end, tail = rest.partition(END)
+    if not (begin and end):
+        print(f"error: {doc} lacks the lines {BEGIN} and {END}, in that order", file=sys.stderr)
+        raise SystemExit(2)
+    return head, body, tail
+
+
+def written_report(doc: Path = DOC) -> str:
+    """The report's text between the markers of `doc`, without the blank lines around it."""
+    return _split(doc)[1].strip("\n")
+
+
+def write_report(lines: list[str], doc: Path = DOC) -> None:
+    """Put the report's `lines` between the markers of `doc`, the rest of it unchanged
+    (atomically)."""
+    head, _, tail = _split(doc)
+    body = "\n".join(lines).strip("\n")
+    atomic_write_text(doc, f"{head}{BEGIN}\n\n{body}\n\n{END}{tail}")
+
+
 def folder(argument: str) -> Path:
     """The folder a command-line argument names (a sweep's, or exported rows); where there is
     none, a one-line error and exit 2."""
@@ -335,6 +367,10 @@ def main(argv: list[str]) -> int:
         for unit in left:
             print(f"left {unit}: still training (no DONE)")
         return 0
+    if argv == ["report", "--write"]:
+        write_report(report(load(ROWS)))
+        print(f"wrote the report's tables into {DOC}")
+        return 0
     if argv[:1] == ["report"] and len(argv) in (1, 2):
         print("\n".join(report(load(folder(argv[1]) if len(argv) == 2 else ROWS))))
         return 0
@@ -342,7 +378,7 @@ def main(argv: list[str]) -> int:
         for path in figure(folder(argv[1]) if len(argv) == 2 else ROWS):
             print(f"wrote {path}")
         return 0
-    print("usage: table1_ant_humanoid.py export SWEEP | report [ROWS] | figure [ROWS]", file=sys.stderr)  # fmt: skip
+    print("usage: table1_ant_humanoid.py export SWEEP | report [ROWS | --write] | figure [ROWS]", file=sys.stderr)  # fmt: skip
     return 2
 
 

@@ -77,7 +77,7 @@ def test_report_runs_the_primary_tests_only_when_both_tasks_finished(script, tmp
     assert "1e-04 (best of 3" in row
     assert f"{np.mean(adarl) - 720:+,.0f}" in row
     assert not any("1e-03" in line and line.startswith("| ant: adarl") for line in lines)
-    assert "| ant | actor | 17 | 20–24 | — | — | — |" in text
+    assert "| ant | actor | 17 | 5 | 20–24 | — | — | — |" in text
 
 
 def test_report_detects_a_large_gap_on_both_tasks(script, tmp_path):
@@ -192,3 +192,27 @@ def test_a_method_trained_one_seed_per_unit_is_finished_when_all_five_seeds_are(
     # three seeds at the budget are not "finished" either, nor a method with a sixth seed
     assert not script.is_finished({"last_step": 300_000, "scores": {0: 1.0, 1: 1.0, 2: 1.0}})
     assert not script.is_finished({"last_step": 300_000, "scores": dict.fromkeys(range(6), 1.0)})
+
+
+def test_the_reports_tables_are_the_scripts_on_the_committed_rows(script):
+    """table1-ant-humanoid.md shows what `report` computes now from the committed rows: rows
+    committed without `report --write`, or a number edited by hand, fail here."""
+    assert script.written_report() == "\n".join(script.report(script.load())).strip("\n")
+
+
+def test_report_write_replaces_only_the_text_between_the_markers(script, tmp_path, capsys):
+    doc = tmp_path / "doc.md"
+    doc.write_text(f"# Title\n\nbefore\n\n{script.BEGIN}\nold table\n{script.END}\n\nafter\n")
+    script.write_report(["### Scores", "", "| a |", ""], doc)
+    expected = (
+        f"# Title\n\nbefore\n\n{script.BEGIN}\n\n### Scores\n\n| a |\n\n{script.END}\n\nafter\n"
+    )
+    assert doc.read_text() == expected
+    assert script.written_report(doc) == "### Scores\n\n| a |"
+    script.write_report(["### Scores", "", "| b |", ""], doc)  # again: the same frame
+    assert doc.read_text() == expected.replace("| a |", "| b |")
+    doc.write_text(f"{script.END}\n{script.BEGIN}\n")  # markers out of order
+    with pytest.raises(SystemExit) as stopped:
+        script.write_report(["x"], doc)
+    assert stopped.value.code == 2 and capsys.readouterr().err.startswith(f"error: {doc} lacks the lines")  # fmt: skip
+    assert doc.read_text() == f"{script.END}\n{script.BEGIN}\n"  # nothing lost
