@@ -12,10 +12,10 @@ time). Rates come, most specific first, from the unit's own run folder (a
 resumed sweep),
 from other runs of the same algorithm on the same task in the sweep folder, and from the sweep
 units measured on this 2-core machine and shipped in `throughput.csv` (the committed
-experiments, docs/experiments/); a unit with no measurement of its algorithm on its task borrows
-the rate of the same algorithm on other tasks, of other algorithms on its task or, last, of all
-measurements, and the line says how many
-did.
+experiments, docs/experiments/). A unit with no measurement of its algorithm on its task borrows
+one, and the line says how many did: its algorithm's rate on another task scaled by that task's
+cost against its own, as another algorithm measured both (`scaled_rate`), else the median rate of
+the same algorithm on other tasks, of other algorithms on its task or, last, of all measurements.
 
 `python -m adarl.sweeps.estimate SWEEP_DIR...` prints the measurements of finished sweeps as
 rows of `throughput.csv`.
@@ -42,7 +42,7 @@ COLUMNS = ("algo", "task", "label", "seeds", "steps", "train_s", "source")
 # (manifest start to the first train.csv interval) in the committed sweeps; compilation is inside
 # the first interval, so inside the rate.
 STARTUP_S = 10.0
-BORROWED = ("algo", "task", "any")  # rates measured on another task or algorithm
+BORROWED = ("scaled", "algo", "task", "any")  # rates measured on another task or algorithm
 # algorithms that train the same networks at the same cost as another (measured) one
 SAME_COST = {"adarl-control": "adarl"}
 
@@ -121,16 +121,7 @@ def pick_rate(
     def cost(x) -> str:
         return SAME_COST.get(x.algo, x.algo)
 
-    levels = [("own run", [own], lambda m: True)]
-    for level, key in (
-        ("label and task", same(lambda x: (x.label, x.task))),
-        ("algo and task", same(lambda x: (cost(x), x.task))),
-        ("algo", same(cost)),
-        ("task", same(lambda x: x.task)),
-        ("any", lambda m: True),
-    ):
-        levels.append((level, [here, shipped], key))
-    for level, pools, key in levels:
+    def first_group(level: str, pools: list[list[Measurement]], key):
         for pool in pools:
             group = [m for m in pool if key(m) and m.train_s > 0 and m.steps > 0]
             if not group:
@@ -138,10 +129,58 @@ def pick_rate(
             if level in BORROWED:  # other algorithms or tasks: the median, so one very slow
                 # or fast network (sac-sparse, RNAC) does not set everyone's rate
                 rate = statistics.median(m.seed_steps_per_s for m in group)
-            else:  # pooled: total seed-steps over total seconds
-                rate = sum(m.seeds * m.steps for m in group) / sum(m.train_s for m in group)
+            else:
+                rate = pooled_rate(group)
             return rate, level, tuple(sorted({m.source for m in group}))
+        return None
+
+    everywhere = [here, shipped]
+    for found in (
+        first_group("own run", [own], lambda m: True),
+        first_group("label and task", everywhere, same(lambda x: (x.label, x.task))),
+        first_group("algo and task", everywhere, same(lambda x: (cost(x), x.task))),
+        scaled_rate(cost(unit), unit.task, here + shipped, cost),
+        first_group("algo", everywhere, same(cost)),
+        first_group("task", everywhere, same(lambda x: x.task)),
+        first_group("any", everywhere, lambda m: True),
+    ):
+        if found is not None:
+            return found
     raise ValueError("no throughput measurement at all")
+
+
+def pooled_rate(group: list[Measurement]) -> float:
+    """Total seed-steps over total seconds."""
+    return sum(m.seeds * m.steps for m in group) / sum(m.train_s for m in group)
+
+
+def scaled_rate(
+    algo: str, task: str, measurements: list[Measurement], cost=lambda m: m.algo
+) -> tuple[float, str, tuple[str, ...]] | None:
+    """The rate of `algo` on `task` where neither was measured together: its rate on another
+    task t' scaled by what another algorithm a' measured on both tasks says `task` costs against
+    t', rate(algo, t') · rate(a', task) / rate(a', t'), the geometric median over every such
+    (a', t') (a network's cost and the physics' cost multiply, to a first approximation). Each
+    (algorithm, task) rate is pooled over its measurements; `cost` names the algorithm whose
+    measurements count for another's (SAME_COST). None when no such (a', t') exists."""
+    cells: dict[tuple[str, str], list[Measurement]] = {}
+    for m in measurements:
+        if m.train_s > 0 and m.steps > 0:
+            cells.setdefault((cost(m), m.task), []).append(m)
+    rate = {cell: pooled_rate(group) for cell, group in cells.items()}
+    logs, used = [], set()
+    for (other_algo, other_task), base in rate.items():
+        if other_algo == algo or other_task == task:
+            continue
+        mine, theirs = rate.get((algo, other_task)), rate.get((other_algo, task))
+        if mine is None or theirs is None:
+            continue
+        logs.append(math.log(mine * theirs / base))
+        for cell in ((algo, other_task), (other_algo, task), (other_algo, other_task)):
+            used.update(m.source for m in cells[cell])
+    if not logs:
+        return None
+    return math.exp(statistics.median(logs)), "scaled", tuple(sorted(used))
 
 
 def critical_paths(jobs: list[tuple[str, float, str | None, float]]) -> dict[str, float]:
