@@ -17,16 +17,21 @@ PY=${CAMPAIGN_PYTHON:-/work/main/.venv/bin/python}
 R=${CAMPAIGN_RESULTS:-/work/main/results}
 mkdir -p "$R"
 # From 2026-12-05 the sweeps of more than a session's units run one seed per unit (campaign.md,
-# "One seed per unit"): the sweep files beside this script; Humanoid first (the longest units);
-# RNAC, whose seeds share a vmapped update, in the preset's units of five.
+# "One seed per unit"): the sweep files beside this script; RNAC, whose seeds share a vmapped
+# update, in the preset's units of five. From 18:05 Table 1's primary pair first (campaign.md,
+# "The primary pair first"): Humanoid SAC, then Ant's AdaRL and SAC, then the other methods.
+# An entry FILE|FOLDER runs FILE into results/FOLDER, a sweep folder it shares with FOLDER's file.
 T1=$E/table1-ant-humanoid
-for sweep in "$T1/table1-humanoid.yaml" "$T1/table1-ant-rest.yaml" "$T1/table1-rnac.yaml" \
+for entry in "$T1/table1-humanoid-sac.yaml|table1-humanoid" "$T1/table1-ant-rest.yaml" \
+  "$T1/table1-humanoid.yaml" "$T1/table1-rnac.yaml" \
   "$E/paper-schedule-walker2d/paper-schedule-walker2d.yaml" fixed-rank-power; do
+  sweep=${entry%%|*}
   name=$(basename "$sweep" .yaml)
-  echo "== $(date -u +%FT%TZ) $name"
+  [[ $entry == *"|"* ]] && name=${entry#*|}
+  echo "== $(date -u +%FT%TZ) $sweep"
   $PY -m adarl.cli.main sweep "$sweep" --out "$R/$name" --workers 2 --no-progress
   code=$?
-  echo "== $(date -u +%FT%TZ) $name exited $code"
+  echo "== $(date -u +%FT%TZ) $(basename "$sweep" .yaml) exited $code"
   # stopped (Ctrl-C, SIGTERM: 130) or refused (bad input: 2): go no further
   if [ "$code" -eq 130 ] || [ "$code" -eq 2 ]; then exit "$code"; fi
   # issue 34 §3.4 on Walker2d's 3M policies (paper-schedule-walker2d.md, "Robustness at 3M"),

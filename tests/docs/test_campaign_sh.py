@@ -11,13 +11,15 @@ import pytest
 EXPERIMENTS = Path(__file__).parents[2] / "docs/experiments"
 SCRIPT = EXPERIMENTS / "campaign.sh"
 SWEEPS = (
-    str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid.yaml"),
+    str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid-sac.yaml"),  # the primary pair first
     str(EXPERIMENTS / "table1-ant-humanoid/table1-ant-rest.yaml"),
+    str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid.yaml"),
     str(EXPERIMENTS / "table1-ant-humanoid/table1-rnac.yaml"),
     str(EXPERIMENTS / "paper-schedule-walker2d/paper-schedule-walker2d.yaml"),
     "fixed-rank-power",
 )
-WALKER2D = SWEEPS[3]
+WALKER2D = SWEEPS[4]
+SHARED_FOLDER = {SWEEPS[0]: "table1-humanoid"}  # a sweep file run into another's sweep folder
 EVALUATED = ("adarl_rank_rule-cumulative", "sac")  # the control is not (paper-schedule-walker2d.md)
 
 
@@ -47,7 +49,7 @@ def _campaign(tmp_path: Path, exits: dict[str, int] | None = None) -> tuple[int,
 
 
 def _sweep(tmp_path: Path, sweep: str) -> str:
-    out = tmp_path / "results" / Path(sweep).name.removesuffix(".yaml")
+    out = tmp_path / "results" / SHARED_FOLDER.get(sweep, Path(sweep).name.removesuffix(".yaml"))
     return f"sweep {sweep} --out {out} --workers 2 --no-progress"
 
 
@@ -78,9 +80,9 @@ def test_the_sweeps_in_order_with_the_robustness_evaluation_after_walker2d(tmp_p
     code, commands = _campaign(tmp_path)
     assert code == 0
     assert commands == [
-        *(_sweep(tmp_path, s) for s in SWEEPS[:4]),
+        *(_sweep(tmp_path, s) for s in SWEEPS[:5]),
         _robustness(runs),  # AdaRL's five seeds, then SAC's
-        _sweep(tmp_path, SWEEPS[4]),
+        _sweep(tmp_path, SWEEPS[5]),
     ]
 
 
@@ -103,7 +105,7 @@ def test_no_walker2d_runs_nothing_to_evaluate(tmp_path):
 def test_a_stopped_or_refused_sweep_ends_the_campaign(tmp_path, code):
     assert _campaign(tmp_path, {WALKER2D: code}) == (
         code,
-        [_sweep(tmp_path, s) for s in SWEEPS[:4]],
+        [_sweep(tmp_path, s) for s in SWEEPS[:5]],
     )
 
 
@@ -117,5 +119,5 @@ def test_the_walker2d_sweep_with_a_failed_unit_is_not_evaluated(tmp_path):
 def test_a_stopped_evaluation_ends_the_campaign_and_a_failed_one_does_not(tmp_path, code, goes_on):
     runs = _runs(tmp_path)
     status, commands = _campaign(tmp_path, {"evaluate": code})
-    assert commands[-1] == (_sweep(tmp_path, SWEEPS[4]) if goes_on else _robustness(runs))
+    assert commands[-1] == (_sweep(tmp_path, SWEEPS[5]) if goes_on else _robustness(runs))
     assert status == (0 if goes_on else code)

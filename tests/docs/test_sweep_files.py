@@ -17,6 +17,7 @@ EXPERIMENTS = Path(__file__).parents[2] / "docs/experiments"
 CAMPAIGN = {
     "table1-ant-humanoid": (
         (
+            "table1-ant-humanoid/table1-humanoid-sac.yaml",
             "table1-ant-humanoid/table1-humanoid.yaml",
             "table1-ant-humanoid/table1-ant-rest.yaml",
             "table1-ant-humanoid/table1-rnac.yaml",
