@@ -168,7 +168,8 @@ def test_scaled_rates_predict_the_shipped_measurements_better_than_the_median_ra
     errors = _log_errors_leaving_each_cell_out(estimate.read_measurements())
     assert len(errors) >= 6
     scaled, median = (sum(e) / len(errors) for e in zip(*errors, strict=True))
-    assert scaled < 0.25 < median  # within about 28% on average, against the old rule's 50%+
+    # 0.17 against 0.41 on the 47 rows of 7111ccc, 0.23 against 0.67 once Humanoid SAC came in
+    assert scaled < 0.35 and scaled < median / 2
 
 
 def test_estimate_of_a_sweep_from_constructed_measurements():
