@@ -8,11 +8,10 @@ The sweep's time is that of the runner's schedule (`start_key`): each free slot 
 unit first, the nearest to done first, then the ready unit with the longest critical path (its
 own time left, or the time until its parent reaches a fork point plus that fork's, when longer);
 a fork unit is ready once its parent has reached the fork point (its share of the parent's
-time). Rates come, most specific first, from the unit's own run folder (a
-resumed sweep),
-from other runs of the same algorithm on the same task in the sweep folder, and from the sweep
-units measured on this 2-core machine and shipped in `throughput.csv` (the committed
-experiments, docs/experiments/). A unit with no measurement of its algorithm on its task borrows
+time). Rates come, most specific first, from the unit's own run folder (a resumed sweep), from
+other runs of the same algorithm on the same task in the sweep folder, and from the sweep units
+measured on this 2-core machine and shipped in `throughput.csv` (the committed experiments,
+docs/experiments/). A unit with no measurement of its algorithm on its task borrows
 one, and the line says how many did: its algorithm's rate on another task scaled by that task's
 cost against its own, as another algorithm measured both (`scaled_rate`), else the median rate of
 the same algorithm on other tasks, of other algorithms on its task or, last, of all measurements.

@@ -3,6 +3,8 @@ the line `adarl sweep` prints, and the shipped measurements against the committe
 real wall times."""
 
 import json
+import math
+import statistics
 
 import pytest
 
@@ -136,7 +138,7 @@ def test_a_rate_never_measured_together_is_scaled_by_an_algorithm_measured_on_bo
         "scaled",
         ("shipped",),
     )
-    # nothing measured sac on a task that another algorithm also measured on walker2d
+    # no algorithm measured on walker2d (only rnac) shares a task with sac: the median of sac's rows
     assert estimate.scaled_rate("sac", "walker2d", shipped) is None
     assert estimate.pick_rate(_unit(algo="sac", task="walker2d"), [], [], shipped)[1] == "algo"
 
@@ -145,9 +147,6 @@ def _log_errors_leaving_each_cell_out(shipped):
     """|ln(predicted / measured)| of each (algorithm, task) cell of `shipped`, predicted from the
     others by pick_rate and by the median of the same algorithm's rows on other tasks (else of the
     task's rows): the rule before `scaled_rate`. Only cells that `scaled_rate` can predict."""
-    import math
-    import statistics
-
     cells = sorted({(m.algo, m.task) for m in shipped})
     out = []
     for algo, task in cells:
