@@ -276,7 +276,7 @@ def report(data: dict) -> list[str]:
         for r in rows:
             by_layer[r["layer"]][int(r["step"])].append(int(r["new_rank"]))
         for layer, by_step in sorted(by_layer.items()):
-            cells = [f"{min(v)}–{max(v)}" for _, v in sorted(by_step.items())][:4]
+            cells = [f"{min(v)}–{max(v)}" if min(v) < max(v) else f"{v[0]}" for _, v in sorted(by_step.items())][:4]  # fmt: skip
             cells += ["—"] * (4 - len(cells))
             lines.append(f"| {task} | {layer} | {2 * ACTION_DIM[task] + 1} | {seeds} | " + " | ".join(cells) + " |")  # fmt: skip
     lines.append("")

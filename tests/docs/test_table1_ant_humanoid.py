@@ -62,7 +62,9 @@ def test_report_runs_the_primary_tests_only_when_both_tasks_finished(script, tmp
     sac = [1000.0, 1100.0, 900.0, 1050.0, 950.0]
     adarl = [2000.0, 2100.0, 1900.0, 2050.0, 1950.0]
     _unit(sweep, "ant", "sac", sac)
-    _unit(sweep, "ant", "adarl", adarl, truncations=[[60_000, s, "actor", 64, 20 + s, 20 + s] for s in range(5)])  # fmt: skip
+    cuts = [[60_000, s, "actor", 64, 20 + s, 20 + s] for s in range(5)]
+    cuts += [[120_000, s, "actor", 20 + s, 19, 19] for s in range(5)]  # every seed at 19
+    _unit(sweep, "ant", "adarl", adarl, truncations=cuts)
     _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-03", [500.0] * 4 + [600.0])
     _unit(sweep, "ant", "sac-parseval_parseval_coef-1e-04", [700.0] * 4 + [800.0])
     _unit(sweep, "humanoid", "sac", sac)
@@ -77,7 +79,7 @@ def test_report_runs_the_primary_tests_only_when_both_tasks_finished(script, tmp
     assert "1e-04 (best of 3" in row
     assert f"{np.mean(adarl) - 720:+,.0f}" in row
     assert not any("1e-03" in line and line.startswith("| ant: adarl") for line in lines)
-    assert "| ant | actor | 17 | 5 | 20–24 | — | — | — |" in text
+    assert "| ant | actor | 17 | 5 | 20–24 | 19 | — | — |" in text
 
 
 def test_report_detects_a_large_gap_on_both_tasks(script, tmp_path):
