@@ -14,8 +14,8 @@ pre-registration: the score of a seed is the mean of its last 5 nominal evaluati
 evaluation the mean return of its episodes; the primary tests are AdaRL − SAC on each task,
 Welch's t-test, Holm over the two; beside each the inverted two-sample permutation interval and
 Welch's detectable difference at 80% power with its range over the pooled SD's 95% interval;
-AdaRL − each baseline (Parseval: the best of three by mean score, chosen after seeing the data)
-is exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
+AdaRL − each baseline (Parseval: the best of three by mean score, chosen after seeing the data;
+until all three have finished, the best of those that have, and the table says so) is exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
 A method whose five seeds have not all reached the budget (in one unit of 5 seeds, or in
 units of one seed, as the campaign ran them from 2026-12-05) is reported as running and enters
 no test. `report --write` puts the tables into the report between its two markers, so that its
@@ -56,6 +56,7 @@ TASKS = ("ant", "humanoid")
 ACTION_DIM = {"ant": 8, "humanoid": 17}  # 2·d_a + 1: 17 and 35
 ADARL, SAC = "adarl", "sac"
 SEEDS = [0, 1, 2, 3, 4]
+PARSEVAL_COEFS = (1e-3, 1e-4, 1e-5)  # the paper's three, every one run on both tasks
 
 
 def export(sweep: Path, rows: Path = ROWS) -> tuple[list[Path], list[Path]]:
@@ -260,7 +261,7 @@ def report(data: dict) -> list[str]:
                 continue
             if method.startswith("sac-parseval") and method != best:
                 continue
-            name = label(method) + (" (best of 3, chosen after the data)" if method == best else "")
+            name = label(method) + (f" ({best_of(data, task)}, chosen after the data)" if method == best else "")  # fmt: skip
             exploratory.append(comparison_row(f"{task}: adarl − {name}", compare(arm(task, ADARL), arm(task, method)), "—"))  # fmt: skip
     lines += (head + exploratory) if exploratory else ["None yet: AdaRL and a baseline must both finish on a task."]  # fmt: skip
     lines.append("")
@@ -298,6 +299,17 @@ def best_parseval(data: dict, task: str) -> str | None:
     )
 
 
+def best_of(data: dict, task: str) -> str:
+    """How many Parseval coefficients `best_parseval` chose among: "best of 3" once all three have
+    finished, before that "best of the 1 finished" (of 3)."""
+    n = sum(m.startswith("sac-parseval") and is_finished(d) for m, d in data.get(task, {}).items())
+    return (
+        f"best of {n}"
+        if n == len(PARSEVAL_COEFS)
+        else f"best of the {n} finished of {len(PARSEVAL_COEFS)}"
+    )
+
+
 def curves(rows: Path = ROWS) -> dict:
     """task -> method label -> DataFrame (step, seed, return): the mean return of each nominal
     evaluation, every method but the Parseval coefficients other than the best finished one."""
@@ -311,7 +323,7 @@ def curves(rows: Path = ROWS) -> dict:
             if method.startswith("sac-parseval") and best is not None and method != best:
                 continue
             table = pd.DataFrame(unit["nominal"], columns=["step", "seed", "return"]).astype(float)
-            name = label(method) + (" (best of 3)" if method == best else "")
+            name = label(method) + (f" ({best_of(data, task)})" if method == best else "")
             out.setdefault(task, {})[name] = table.groupby(["step", "seed"], as_index=False).mean()
     return out
 
