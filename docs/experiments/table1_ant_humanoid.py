@@ -15,7 +15,8 @@ evaluation the mean return of its episodes; the primary tests are AdaRL − SAC 
 Welch's t-test, Holm over the two; beside each the inverted two-sample permutation interval and
 Welch's detectable difference at 80% power with its range over the pooled SD's 95% interval;
 AdaRL − each baseline (Parseval: the best of three by mean score, chosen after seeing the data;
-until all three have finished, the best of those that have, and the table says so) is exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
+until all three have finished, the best of those that have, and the table says so) is
+exploratory and uncorrected; the ranks the energy rule kept at each cut, against 2·d_a + 1.
 A method whose five seeds have not all reached the budget (in one unit of 5 seeds, or in
 units of one seed, as the campaign ran them from 2026-12-05) is reported as running and enters
 no test. `report --write` puts the tables into the report between its two markers, so that its
