@@ -4,6 +4,7 @@ analysis from them. Expected values are computed here by hand from the rows the 
 import csv
 import importlib.util
 import shutil
+from itertools import combinations
 from pathlib import Path
 
 import numpy as np
@@ -220,3 +221,81 @@ def test_report_write_replaces_only_the_text_between_the_markers(script, tmp_pat
         script.write_report(["x"], doc)
     assert stopped.value.code == 2 and capsys.readouterr().err.startswith(f"error: {doc} lacks the lines")  # fmt: skip
     assert doc.read_text() == f"{script.END}\n{script.BEGIN}\n"  # nothing lost
+
+
+def _permutation_p(x, y):
+    """Exact two-sided p of the difference of means over every split of x ∪ y (by brute force)."""
+    z = np.concatenate([x, y])
+    first = np.array([np.isin(np.arange(z.size), i) for i in combinations(range(z.size), x.size)])
+    differences = (first * z).sum(1) / x.size - (~first * z).sum(1) / y.size
+    return float(np.mean(np.abs(differences) >= abs(x.mean() - y.mean()) - 1e-9))
+
+
+def test_the_numbers_the_results_quote(script):
+    """The Results section's numbers, written here from its text, recomputed from the committed
+    rows with SciPy's Welch test, Holm by hand and a brute-force permutation test: independent of
+    the script's statistics (only its reading of the rows is shared)."""
+    from scipy import stats
+
+    data = script.load()
+
+    def arm(task, method):
+        scores = data[task][method]["scores"]
+        return np.array([scores[s] for s in sorted(scores)])
+
+    quoted = {  # task: AdaRL mean, SD; SAC mean, SD; difference; Welch interval; Welch p
+        "ant": (2025, 77, 1982, 46, 43, (-54, 140), 0.324),
+        "humanoid": (999, 900, 521, 30, 478, (-639, 1595), 0.301),
+    }
+    p = {}
+    for task, (m_a, sd_a, m_s, sd_s, diff, ci, p_welch) in quoted.items():
+        x, y = arm(task, "adarl"), arm(task, "sac")
+        assert (x.mean(), x.std(ddof=1), y.mean(), y.std(ddof=1)) == pytest.approx((m_a, sd_a, m_s, sd_s), abs=0.5)  # fmt: skip
+        welch = stats.ttest_ind(x, y, equal_var=False)
+        interval = welch.confidence_interval()
+        assert x.mean() - y.mean() == pytest.approx(diff, abs=0.5)
+        assert (interval.low, interval.high) == pytest.approx(ci, abs=0.5)
+        assert welch.pvalue == pytest.approx(p_welch, abs=0.0005)
+        p[task] = welch.pvalue
+    low, high = sorted(p.values())
+    holm = max(min(1, 2 * low), min(1, high))  # Holm over two: both adjusted p are this here
+    assert min(1, 2 * low) == pytest.approx(0.602, abs=0.0005) and holm == pytest.approx(0.602, abs=0.0005)  # fmt: skip
+
+    # the permutation intervals: the shifts d at which the exact test of (x − d, y) keeps p > 0.05
+    for task, (lo, hi) in {"ant": (-45, 136), "humanoid": (-16, 1174)}.items():
+        x, y = arm(task, "adarl"), arm(task, "sac")
+        assert _permutation_p(x - (lo + 1), y) > 0.05 and _permutation_p(x - (hi - 1), y) > 0.05
+        assert _permutation_p(x - (lo - 2), y) <= 0.05 and _permutation_p(x - (hi + 2), y) <= 0.05
+    x, y = arm("humanoid", "adarl"), arm("humanoid", "sac")
+    assert _permutation_p(x, y) == pytest.approx(28 / 252)  # "its exact two-sided p is 0.111"
+
+    # exploratory: Ant, AdaRL − sparse
+    x, sparse = arm("ant", "adarl"), arm("ant", "sac-sparse_sparse_width-256")
+    welch = stats.ttest_ind(x, sparse, equal_var=False)
+    interval = welch.confidence_interval()
+    assert (x.mean() - sparse.mean(), interval.low, interval.high) == pytest.approx((-542, -830, -255), abs=0.5)  # fmt: skip
+    assert welch.pvalue == pytest.approx(0.005, abs=0.0005)
+
+    # the ranks after the first and the fourth cut (actor), min–max over seeds
+    def actor_ranks(task, cut):
+        rows = [r for r in data[task]["adarl"]["truncations"] if r["layer"] == "actor_1"]
+        step = sorted({int(r["step"]) for r in rows})[cut - 1]
+        ranks = [int(r["new_rank"]) for r in rows if int(r["step"]) == step]
+        return min(ranks), max(ranks)
+
+    assert actor_ranks("ant", 1) == (37, 38) and actor_ranks("ant", 4) == (26, 27)
+    assert actor_ranks("humanoid", 1) == (40, 41) and actor_ranks("humanoid", 2) == (33, 34)
+    assert actor_ranks("humanoid", 4) == (22, 27)
+
+
+def test_how_long_the_humanoid_adarl_policies_stay_up(script):
+    """ "fall within 90–155 steps on average; seed 3 ... stays up 549 steps on average": the mean
+    episode length of the last 5 nominal evaluations, from the committed eval rows."""
+    lengths = {}
+    for path in sorted((script.ROWS / "humanoid" / "adarl").glob("*eval.csv.gz")):
+        for row in script.read_gzipped(path):
+            if row["dynamics"] == "nominal" and int(row["step"]) > 250_000:
+                lengths.setdefault(int(row["seed"]), []).append(int(row["length"]))
+    means = {seed: np.mean(v) for seed, v in lengths.items()}
+    assert sorted(lengths) == [0, 1, 2, 3, 4] and all(len(v) == 25 for v in lengths.values())
+    assert round(means.pop(3)) == 549 and all(90 <= m <= 155 for m in means.values())
