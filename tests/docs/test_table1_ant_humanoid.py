@@ -261,6 +261,19 @@ def test_the_numbers_the_results_quote(script):
     holm = max(min(1, 2 * low), min(1, high))  # Holm over two: both adjusted p are this here
     assert min(1, 2 * low) == pytest.approx(0.602, abs=0.0005) and holm == pytest.approx(0.602, abs=0.0005)  # fmt: skip
 
+    # detectable at 80% power: Welch's test simulated on normal arms with the pooled SD; its range
+    # scales with the SD over the SD's 95% chi-square interval (8 degrees of freedom)
+    rng = np.random.default_rng(0)
+    z1, z2 = rng.standard_normal((2, 100_000, 5))
+    for task, (sd, detectable, low, high) in {"ant": (64, 132, 89, 254), "humanoid": (637, 1327, 896, 2542)}.items():  # fmt: skip
+        x, y = arm(task, "adarl"), arm(task, "sac")
+        pooled = np.sqrt((x.var(ddof=1) + y.var(ddof=1)) / 2)
+        assert pooled == pytest.approx(sd, abs=0.5)
+        power = np.mean(stats.ttest_ind(z1 * pooled + detectable, z2 * pooled, axis=1, equal_var=False).pvalue < 0.05)  # fmt: skip
+        assert power == pytest.approx(0.80, abs=0.01)
+        scale = np.sqrt(8 / stats.chi2.ppf([0.975, 0.025], 8))
+        assert detectable * scale == pytest.approx((low, high), rel=0.01)
+
     # the permutation intervals: the shifts d at which the exact test of (x − d, y) keeps p > 0.05
     for task, (lo, hi) in {"ant": (-45, 136), "humanoid": (-16, 1174)}.items():
         x, y = arm(task, "adarl"), arm(task, "sac")
