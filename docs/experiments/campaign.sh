@@ -19,11 +19,13 @@ mkdir -p "$R"
 # From 2026-12-05 the sweeps of more than a session's units run one seed per unit (campaign.md,
 # "One seed per unit"): the sweep files beside this script; RNAC, whose seeds share a vmapped
 # update, in the preset's units of five. From 18:05 Table 1's primary pair first (campaign.md,
-# "The primary pair first"): Humanoid SAC, then Ant's AdaRL and SAC, then the other methods.
+# "The primary pair first"): Humanoid SAC, then Ant's AdaRL and SAC, then the other methods;
+# from 2026-12-05 20:38 RNAC before the rest of Humanoid's Parseval units, so that every method
+# of Table 1 has a row first (campaign.md, "RNAC before Parseval's rest").
 # An entry FILE|FOLDER runs FILE into results/FOLDER, a sweep folder it shares with FOLDER's file.
 T1=$E/table1-ant-humanoid
 for entry in "$T1/table1-humanoid-sac.yaml|table1-humanoid" "$T1/table1-ant-rest.yaml" \
-  "$T1/table1-humanoid.yaml" "$T1/table1-rnac.yaml" \
+  "$T1/table1-rnac.yaml" "$T1/table1-humanoid.yaml" \
   "$E/paper-schedule-walker2d/paper-schedule-walker2d.yaml" fixed-rank-power; do
   sweep=${entry%%|*}
   name=$(basename "$sweep" .yaml)

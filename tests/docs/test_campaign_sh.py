@@ -13,8 +13,8 @@ SCRIPT = EXPERIMENTS / "campaign.sh"
 SWEEPS = (
     str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid-sac.yaml"),  # the primary pair first
     str(EXPERIMENTS / "table1-ant-humanoid/table1-ant-rest.yaml"),
+    str(EXPERIMENTS / "table1-ant-humanoid/table1-rnac.yaml"),  # every method, then Parseval's rest
     str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid.yaml"),
-    str(EXPERIMENTS / "table1-ant-humanoid/table1-rnac.yaml"),
     str(EXPERIMENTS / "paper-schedule-walker2d/paper-schedule-walker2d.yaml"),
     "fixed-rank-power",
 )
