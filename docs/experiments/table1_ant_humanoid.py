@@ -313,7 +313,8 @@ def best_of(data: dict, task: str) -> str:
 
 def curves(rows: Path = ROWS) -> dict:
     """task -> method label -> DataFrame (step, seed, return): the mean return of each nominal
-    evaluation, every method but the Parseval coefficients other than the best finished one."""
+    evaluation, every method but the Parseval coefficients other than the best finished one; a
+    method short of its five seeds says how many it has."""
     import pandas as pd
 
     data = load(rows)
@@ -325,6 +326,8 @@ def curves(rows: Path = ROWS) -> dict:
                 continue
             table = pd.DataFrame(unit["nominal"], columns=["step", "seed", "return"]).astype(float)
             name = label(method) + (f" ({best_of(data, task)})" if method == best else "")
+            if not is_finished(unit):
+                name += f" ({len(unit['scores'])} of {len(SEEDS)} seeds)"
             out.setdefault(task, {})[name] = table.groupby(["step", "seed"], as_index=False).mean()
     return out
 

@@ -140,11 +140,11 @@ def test_figure_draws_each_methods_mean_curve_with_the_best_parseval_only(script
     script.export(sweep, tmp_path / "rows")
     found = script.curves(tmp_path / "rows")
     # 1e-05 scores highest but is still running: the best of the two finished is 1e-04
-    assert sorted(found["ant"]) == ["sac", "sac-parseval 1e-04 (best of the 2 finished of 3)"]
+    assert sorted(found["ant"]) == ["sac (2 of 5 seeds)", "sac-parseval 1e-04 (best of the 2 finished of 3)"]  # fmt: skip
     # the evaluation's mean over its two episodes (noise -1, +1): returns[s] + step/1e5
-    sac = found["ant"]["sac"]
+    sac = found["ant"]["sac (2 of 5 seeds)"]
     assert sac[sac.step == 20_000].sort_values("seed")["return"].tolist() == pytest.approx([100.2, 300.2])  # fmt: skip
-    assert found["humanoid"]["adarl"].step.max() == 300_000
+    assert found["humanoid"]["adarl (2 of 5 seeds)"].step.max() == 300_000
     written = script.figure(tmp_path / "rows", tmp_path / "fig" / "curves")
     assert sorted(p.name for p in written) == ["curves.pdf", "curves.png"]
     with pytest.raises(SystemExit) as stopped:
