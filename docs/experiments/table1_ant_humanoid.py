@@ -302,7 +302,7 @@ def best_parseval(data: dict, task: str) -> str | None:
 
 def best_of(data: dict, task: str) -> str:
     """How many Parseval coefficients `best_parseval` chose among: "best of 3" once all three have
-    finished, before that "best of the 1 finished" (of 3)."""
+    finished, before that "best of the 2 finished of 3" (or however many have)."""
     n = sum(m.startswith("sac-parseval") and is_finished(d) for m, d in data.get(task, {}).items())
     return (
         f"best of {n}"
