@@ -312,3 +312,42 @@ def test_how_long_the_humanoid_adarl_policies_stay_up(script):
     means = {seed: np.mean(v) for seed, v in lengths.items()}
     assert sorted(lengths) == [0, 1, 2, 3, 4] and all(len(v) == 25 for v in lengths.values())
     assert round(means.pop(3)) == 549 and all(90 <= m <= 155 for m in means.values())
+
+
+def test_what_the_results_say_of_rnac_on_ant(script):
+    """ "at 10k steps its deterministic policy stands for all 1,000 steps (return 842), at 300k it
+    ends each episode after 17 steps"; "about 2.1 per step" of control cost at σ = 1; training
+    return per step −1.25 (first 20k) and −1.6 (last 50k), episodes of 273 and 69 steps."""
+    from scipy import stats
+
+    unit = script.ROWS / "ant" / "rnac"
+    evals = [r for r in script.read_gzipped(unit / "seeds-0-4-eval.csv.gz") if r["dynamics"] == "nominal"]  # fmt: skip
+
+    def at(step, field):
+        return np.mean([float(r[field]) for r in evals if int(r["step"]) == step])
+
+    assert at(10_000, "length") == 1000 and round(at(10_000, "return")) == 842
+    assert round(at(300_000, "length")) == 17
+    episodes = script.read_gzipped(unit / "seeds-0-4-episodes.csv.gz")
+
+    def per_step(lo, hi):
+        sel = [r for r in episodes if lo <= int(r["step"]) < hi]
+        returns, lengths = (np.array([float(r[f]) for r in sel]) for f in ("return", "length"))
+        return returns.sum() / lengths.sum(), lengths.mean()
+
+    (first, first_length), (last, last_length) = per_step(0, 20_000), per_step(250_000, 300_001)
+    assert round(first, 2) == -1.25 and round(first_length) == 273
+    assert round(last, 1) == -1.6 and round(last_length) == 69
+    # E[clip(z, −1, 1)²] for z ~ N(0, 1), times Ant's 0.5 control weight and 8 joints
+    inside = (2 * stats.norm.cdf(1) - 1) - 2 * stats.norm.pdf(1)  # E[z²; |z| < 1]
+    assert 0.5 * 8 * (inside + 2 * stats.norm.sf(1)) == pytest.approx(2.1, abs=0.05)
+
+
+def test_rnac_on_humanoid_never_stays_up_longer(script):
+    """ "its evaluation episodes lasting 42–55 steps on average at every one of its 30 evaluations"."""
+    lengths = {}
+    for r in script.read_gzipped(script.ROWS / "humanoid" / "rnac" / "seeds-0-4-eval.csv.gz"):
+        if r["dynamics"] == "nominal":
+            lengths.setdefault(int(r["step"]), []).append(int(r["length"]))
+    means = [np.mean(v) for v in lengths.values()]
+    assert len(means) == 30 and (round(min(means)), round(max(means))) == (42, 55)
