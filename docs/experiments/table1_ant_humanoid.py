@@ -262,7 +262,7 @@ def report(data: dict) -> list[str]:
                 continue
             if method.startswith("sac-parseval") and method != best:
                 continue
-            name = label(method) + (f" ({best_of(data, task)}, chosen after the data)" if method == best else "")  # fmt: skip
+            name = label(method) + (f" ({best_of(data, task, chosen=True)})" if method == best else "")  # fmt: skip
             exploratory.append(comparison_row(f"{task}: adarl − {name}", compare(arm(task, ADARL), arm(task, method)), "—"))  # fmt: skip
     lines += (head + exploratory) if exploratory else ["None yet: AdaRL and a baseline must both finish on a task."]  # fmt: skip
     lines.append("")
@@ -300,15 +300,16 @@ def best_parseval(data: dict, task: str) -> str | None:
     )
 
 
-def best_of(data: dict, task: str) -> str:
-    """How many Parseval coefficients `best_parseval` chose among: "best of 3" once all three have
-    finished, before that "best of the 2 finished of 3" (or however many have)."""
+def best_of(data: dict, task: str, chosen: bool = False) -> str:
+    """Among how many Parseval coefficients `best_parseval` chose: "best of 3" once all three have
+    finished, before that "best of the 2 finished of 3", or "the only one of 3 finished so far";
+    `chosen` adds that a choice among several was made after seeing the data."""
     n = sum(m.startswith("sac-parseval") and is_finished(d) for m, d in data.get(task, {}).items())
-    return (
-        f"best of {n}"
-        if n == len(PARSEVAL_COEFS)
-        else f"best of the {n} finished of {len(PARSEVAL_COEFS)}"
-    )
+    total = len(PARSEVAL_COEFS)
+    if n == 1:
+        return f"the only one of {total} finished so far"
+    text = f"best of {n}" if n == total else f"best of the {n} finished of {total}"
+    return text + (", chosen after the data" if chosen else "")
 
 
 def curves(rows: Path = ROWS) -> dict:

@@ -351,3 +351,16 @@ def test_rnac_on_humanoid_never_stays_up_longer(script):
             lengths.setdefault(int(r["step"]), []).append(int(r["length"]))
     means = [np.mean(v) for v in lengths.values()]
     assert len(means) == 30 and (round(min(means)), round(max(means))) == (42, 55)
+
+
+def test_the_best_parseval_says_among_how_many_finished_coefficients_it_was_chosen(script):
+    done = {"last_step": 300_000, "scores": dict.fromkeys(range(5), 1.0)}
+    running = {"last_step": 100_000, "scores": dict.fromkeys(range(5), 1.0)}
+    ant = {"sac": done, "sac-parseval_parseval_coef-0.001": done}
+    ant["sac-parseval_parseval_coef-0.0001"] = running
+    data = {"ant": ant}
+    assert script.best_of(data, "ant", chosen=True) == "the only one of 3 finished so far"
+    ant["sac-parseval_parseval_coef-0.0001"] = done
+    assert script.best_of(data, "ant", chosen=True) == "best of the 2 finished of 3, chosen after the data"  # fmt: skip
+    ant["sac-parseval_parseval_coef-1e-05"] = done
+    assert script.best_of(data, "ant") == "best of 3"
