@@ -291,12 +291,18 @@ def is_finished(unit: dict | None) -> bool:
     return unit is not None and unit["last_step"] >= BUDGET and sorted(unit["scores"]) == SEEDS
 
 
+def finished_parseval(data: dict, task: str) -> list[str]:
+    """The Parseval methods (one per coefficient) of `task` whose five seeds have finished."""
+    return [m for m, d in data.get(task, {}).items() if m.startswith("sac-parseval") and is_finished(d)]  # fmt: skip
+
+
 def best_parseval(data: dict, task: str) -> str | None:
     """The Parseval coefficient with the highest mean score among the finished ones (chosen
     after seeing the data, as the paper did)."""
-    finished = [m for m, d in data.get(task, {}).items() if m.startswith("sac-parseval") and is_finished(d)]  # fmt: skip
     return max(
-        finished, key=lambda m: np.mean(list(data[task][m]["scores"].values())), default=None
+        finished_parseval(data, task),
+        key=lambda m: np.mean(list(data[task][m]["scores"].values())),
+        default=None,
     )
 
 
@@ -304,7 +310,7 @@ def best_of(data: dict, task: str, chosen: bool = False) -> str:
     """Among how many Parseval coefficients `best_parseval` chose: "best of 3" once all three have
     finished, before that "best of the 2 finished of 3", or "the only one of 3 finished so far";
     `chosen` adds that a choice among several was made after seeing the data."""
-    n = sum(m.startswith("sac-parseval") and is_finished(d) for m, d in data.get(task, {}).items())
+    n = len(finished_parseval(data, task))
     total = len(PARSEVAL_COEFS)
     if n == 1:
         return f"the only one of {total} finished so far"
