@@ -153,11 +153,13 @@ def training_curves(
     curves: Mapping[str, Mapping[str, pd.DataFrame]],
     truncations: Mapping[str, Sequence[int]] | None = None,
     colours: Mapping[str, tuple] | None = None,
+    legend_loc: str = "best",
 ) -> Figure:
     """Return over training per task (one panel each), one line per method with its band over
     seeds, and the truncation steps as red dashed vertical lines.
 
-    `curves[task][method]` has columns `step, seed, return`.
+    `curves[task][method]` has columns `step, seed, return`; `legend_loc` is matplotlib's `loc`,
+    or "below" for a legend under each panel, clear of every curve (the figure grows to hold it).
     """
     tasks = list(curves)
     colours = colours or method_colours([m for t in tasks for m in curves[t]])
@@ -171,7 +173,12 @@ def training_curves(
         ax.set_title(task)
         _steps_axis(ax)
         ax.set_ylabel("return (nominal dynamics)")
-        ax.legend(loc="best")
+        if legend_loc == "below":
+            ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncols=2)
+        else:
+            ax.legend(loc=legend_loc)
+    if legend_loc == "below":
+        fig.set_figheight(fig.get_figheight() * 1.45)
     return fig
 
 

@@ -343,7 +343,8 @@ def figure(rows: Path = ROWS, stem: Path = CURVES) -> list[Path]:
     """Draw `curves(rows)`, one panel per task; returns the files written."""
     from adarl.report import figures
 
-    return figures.save_figure(figures.training_curves(curves(rows)), stem)
+    # Ant's curves leave no corner free: "best" put the legend over RNAC's curve
+    return figures.save_figure(figures.training_curves(curves(rows), legend_loc="below"), stem)
 
 
 def _split(doc: Path) -> tuple[str, str, str]:

@@ -56,6 +56,23 @@ def test_training_curves_have_a_panel_per_task_and_truncation_lines(runs):
     assert hopper.xaxis.get_major_formatter()(4000, 0) == "4k"
 
 
+def test_a_legend_below_the_panels_overlaps_no_panel(runs):
+    curves = {}
+    for name in ("adarl", "sac", "w-sac"):
+        r = runs[name]
+        curves.setdefault(r.task, {})[r.label] = collect.training_curve(r)[0]
+    height = figures.training_curves(curves).get_figheight()
+    fig = figures.training_curves(curves, legend_loc="below")
+    assert fig.get_figheight() > height
+    fig.canvas.draw()
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    for ax in axes:
+        legend = ax.get_legend().get_window_extent()
+        assert [t.get_text() for t in ax.get_legend().get_texts()] == labels(ax)
+        assert all(not legend.overlaps(other.get_window_extent()) for other in axes)
+        assert legend.y1 < ax.get_window_extent().y0  # under its own panel
+
+
 @pytest.mark.parametrize(
     "steps, text", [(0, "0"), (500, "500"), (1_000, "1k"), (250_000, "250k"), (1_500_000, "1.5M"),
                     (3_000_000, "3M"), (700_950, "700.95k")],
