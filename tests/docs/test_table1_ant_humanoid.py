@@ -364,3 +364,54 @@ def test_the_best_parseval_says_among_how_many_finished_coefficients_it_was_chos
     assert script.best_of(data, "ant", chosen=True) == "best of the 2 finished of 3, chosen after the data"  # fmt: skip
     ant["sac-parseval_parseval_coef-1e-05"] = done
     assert script.best_of(data, "ant") == "best of 3"
+
+
+def test_what_the_results_say_of_parseval(script):
+    """Each coefficient's mean ± SD as the Results quote them, the best one per task, and AdaRL −
+    best with SciPy's Welch interval and the brute-force permutation interval (Humanoid)."""
+    from scipy import stats
+
+    data = script.load()
+
+    def arm(task, method):
+        scores = data[task][method]["scores"]
+        return np.array([scores[s] for s in sorted(scores)])
+
+    quoted = {  # task: {coefficient: (mean, SD or None)}, (AdaRL − best, Welch interval)
+        "ant": (
+            {"1e-05": (1732, 98), "0.0001": (1473, None), "0.001": (799, None)},
+            (293, (162, 423)),
+        ),
+        "humanoid": (
+            {"1e-05": (405, 45), "0.0001": (373, 43), "0.001": (323, 63)},
+            (593, (-523, 1710)),
+        ),
+    }
+    for task, (coefficients, (difference, interval)) in quoted.items():
+        means = {}
+        for coefficient, (mean, sd) in coefficients.items():
+            scores = arm(task, f"sac-parseval_parseval_coef-{coefficient}")
+            means[coefficient] = scores.mean()
+            assert len(scores) == 5 and round(scores.mean()) == mean
+            assert sd is None or round(scores.std(ddof=1)) == sd
+        assert max(means, key=means.get) == "1e-05"  # "the best of the three" on both tasks
+        x, y = arm(task, "adarl"), arm(task, "sac-parseval_parseval_coef-1e-05")
+        ci = stats.ttest_ind(x, y, equal_var=False).confidence_interval()
+        assert (x.mean() - y.mean(), ci.low, ci.high) == pytest.approx((difference, *interval), abs=0.5)  # fmt: skip
+    x, y = arm("humanoid", "adarl"), arm("humanoid", "sac-parseval_parseval_coef-1e-05")
+    lo, hi = 93, 1311  # "permutation [+93, +1,311]"
+    assert _permutation_p(x - (lo + 1), y) > 0.05 and _permutation_p(x - (hi - 1), y) > 0.05
+    assert _permutation_p(x - (lo - 2), y) <= 0.05 and _permutation_p(x - (hi + 2), y) <= 0.05
+
+
+def test_how_long_the_table_trained(script):
+    """ "44 unit-hours in all": each run's train.csv intervals over their rates (the first seed's
+    rows; all seeds of a run share a clock), summed over every committed run."""
+    import pandas as pd
+
+    seconds = 0.0
+    for path in script.ROWS.glob("*/*/*train.csv.gz"):
+        rows = pd.read_csv(path)
+        rows = rows[rows["seed"] == rows["seed"].iloc[0]]
+        seconds += (np.diff(rows["step"], prepend=0) / rows["steps_per_s"]).sum()
+    assert round(seconds / 3600) == 44
