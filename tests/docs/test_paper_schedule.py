@@ -199,3 +199,23 @@ def test_command_line(script, sweep, tmp_path, capsys):
     assert script.cli(["export", str(sweep), str(tmp_path / "rows")]) == 0
     # AdaRL and the control: 4 files each; SAC has no truncations.csv
     assert capsys.readouterr().out == f"wrote 11 files under {tmp_path / 'rows'}\n"
+
+
+def test_what_the_walker2d_progress_says_of_its_finished_adarl_units():
+    """paper-schedule-walker2d.md, "Progress": the ranks kept at each cut and the training time,
+    read with pandas from the committed rows (seeds finished so far, at least 0 and 1)."""
+    import pandas as pd
+
+    arm = EXPERIMENTS / "paper-schedule-walker2d/rows/walker2d/adarl_rank_rule-cumulative"
+    quoted = {  # seed: actor's ranks, each critic's ranks, seconds of training
+        0: ([36, 29, 25, 23], [42, 36, 32, 29], 6236),
+        1: ([34, 28, 25, 23], [40, 34, 30, 27], 6290),
+    }
+    for seed, (actor, critic, seconds) in quoted.items():
+        cuts = pd.read_csv(arm / f"seeds-{seed}/truncations.csv.gz")
+        assert sorted(set(cuts["step"])) == [700_950, 1_400_950, 2_100_950, 2_800_950]
+        for layer, ranks in [("actor_1", actor), ("q1_1", critic), ("q2_1", critic)]:
+            assert list(cuts[cuts["layer"] == layer].sort_values("step")["new_rank"]) == ranks
+        train = pd.read_csv(arm / f"seeds-{seed}/train.csv.gz")
+        assert train["step"].iloc[-1] == 3_000_000 and (np.diff(train["step"]) > 0).all()
+        assert round((np.diff(train["step"], prepend=0) / train["steps_per_s"]).sum()) == seconds
