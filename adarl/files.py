@@ -88,6 +88,7 @@ def _alive(pid: int) -> bool:
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write `data` to `path` via a temp file in the same folder, fsync and rename."""
     path = Path(path)
+    refuse_special(path)  # the rename would replace a device, a FIFO or a socket
     with fs_errors(path):
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = temp_file(path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -140,17 +141,48 @@ def check_writable_dir(path: str | os.PathLike, what: str = "--out") -> None:
     """A one-line UsageError unless `path` is a writable folder or can be created as one
     (leaves nothing behind: see `probe_writable`)."""
     path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise UsageError(f"{what} {path} is a file; give a folder")
+    kind = existing_kind(path)
+    if kind is not None and kind != "a folder":
+        what_it_is = "a file" if kind == "a regular file" else kind
+        raise UsageError(f"{what} {path} is {what_it_is}; give a folder")
     _check_creatable(path, path, what)
 
 
 def check_writable_file(path: str | os.PathLike, what: str = "--out") -> None:
-    """A one-line UsageError unless `path` can be written as a file (leaves nothing behind)."""
+    """A one-line UsageError unless `path` can be written as a file (leaves nothing behind):
+    absent, or a regular file (a device, FIFO or socket there is refused: the atomic write
+    would replace it)."""
     path = Path(path)
-    if path.is_dir():
+    if existing_kind(path) == "a folder":
         raise UsageError(f"{what} {path} is a folder; give a file name")
+    refuse_special(path, what)
     _check_creatable(path, path.parent, what)
+
+
+def existing_kind(path: str | os.PathLike) -> str | None:
+    """What `path` is (links followed): "a regular file", "a folder", "a FIFO", "a character
+    device", …; None when nothing is there (or a link points nowhere)."""
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError:  # e.g. a permission error on the way: the write will say it
+        return None
+    return "a regular file" if stat.S_ISREG(mode) else _file_kind(mode)
+
+
+def refuse_special(path: str | os.PathLike, what: str | None = None) -> None:
+    """A one-line UsageError if something other than a regular file or nothing is at `path`
+    (links followed): writing there would replace a device, a FIFO, a socket or a folder with
+    a file (docs/reliability.md)."""
+    kind = existing_kind(path)
+    if kind is None or kind == "a regular file":
+        return
+    name = f"{what} {path}" if what else str(path)
+    raise UsageError(
+        f"{name} is {kind}, not a regular file; adarl writes only regular files there "
+        "(allowed: a new name or an existing regular file)"
+    )
 
 
 def _check_creatable(path: Path, folder: Path, what: str) -> None:
@@ -159,7 +191,9 @@ def _check_creatable(path: Path, folder: Path, what: str) -> None:
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
     if not existing.is_dir():
-        raise UsageError(f"{what} {path} cannot be written: {existing} is a file, not a folder")
+        kind = existing_kind(existing) or "not a folder"
+        kind = "a file" if kind == "a regular file" else kind
+        raise UsageError(f"{what} {path} cannot be written: {existing} is {kind}, not a folder")
     why = probe_writable(existing)
     if why is not None:
         raise UsageError(f"{what} {path} cannot be written: {existing} is not writable ({why})")

@@ -122,3 +122,52 @@ def test_the_reader_bounds_yaml_depth_aliases_and_cycles(tmp_path):
     # aliases a user writes in a sweep file are fine while they expand to a sane size
     (tmp_path / "shared.yaml").write_text("base: &b {lr: 1, seeds: [0, 1]}\nx: *b\ny: *b\n")
     assert read_yaml(tmp_path / "shared.yaml")["y"] == {"lr": 1, "seeds": [0, 1]}
+
+
+# ----------------------------------------------------------------------------- special files
+def special_files(folder):
+    """A FIFO and, where this process may make one (root), a character device like /dev/full
+    (1, 7), made in `folder`: never the real devices."""
+    import stat
+
+    made = {}
+    fifo = folder / "fifo"
+    os.mkfifo(fifo)
+    made["a FIFO"] = fifo
+    device = folder / "full"
+    try:
+        os.mknod(device, stat.S_IFCHR | 0o666, os.makedev(1, 7))
+        made["a character device"] = device
+    except (PermissionError, OSError):
+        pass
+    return made
+
+
+def test_a_special_file_is_refused_and_left_as_it_was(tmp_path):
+    """Issue 55: `export --out /dev/full` replaced the device with a zip. Every writer refuses
+    what exists and is not a regular file (links followed), naming what it is."""
+    import stat
+
+    from adarl.files import atomic_write_bytes
+
+    made = special_files(tmp_path)
+    link = tmp_path / "link"
+    link.symlink_to(made["a FIFO"])
+    for kind, path in [*made.items(), ("a FIFO", link)]:
+        mode = os.lstat(path).st_mode
+        with pytest.raises(UsageError, match=f"is {kind}, not a regular file"):
+            check_writable_file(path)
+        with pytest.raises(UsageError, match=f"is {kind}; give a folder"):
+            check_writable_dir(path)
+        with pytest.raises(UsageError, match=f"is {kind}, not a regular file"):
+            atomic_write_bytes(path, b"data")
+        assert os.lstat(path).st_mode == mode  # still what it was
+        with pytest.raises(UsageError, match=f"is {kind}, not a folder"):
+            check_writable_file(path / "x.npz")
+    assert stat.S_ISFIFO(os.stat(link).st_mode)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp file left
+    regular = tmp_path / "regular"
+    regular.write_bytes(b"old")
+    check_writable_file(regular)  # a regular file may be replaced
+    atomic_write_bytes(regular, b"new")
+    assert regular.read_bytes() == b"new"

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from adarl.errors import UsageError
-from adarl.files import temp_file
+from adarl.files import refuse_special, temp_file
 
 BACKEND_PACKAGES = {
     "egl": "libegl1 (Debian/Ubuntu; add libgl1-mesa-dri to render without a GPU)",
@@ -165,6 +165,7 @@ def play(
     streamed to a temp file that is renamed at the end, so a failure leaves no partial video."""
     video = Path(video)
     check_video_path(video)
+    refuse_special(video, "--video")
     if episodes < 1 or fps < 1 or width < 16 or height < 16:
         raise UsageError("--episodes and --fps must be ≥ 1, --width and --height ≥ 16")
     prepare_backend()
@@ -183,6 +184,7 @@ def play(
                 results = render_rollouts(
                     policy, env, episodes, seed, append, width, height, stride, max_steps
                 )
+            refuse_special(video, "--video")  # made a FIFO or a device while rendering
             os.replace(tmp, video)
         except BaseException:
             if os.path.exists(tmp):
