@@ -415,3 +415,102 @@ def test_how_long_the_table_trained(script):
         rows = rows[rows["seed"] == rows["seed"].iloc[0]]
         seconds += (np.diff(rows["step"], prepend=0) / rows["steps_per_s"]).sum()
     assert round(seconds / 3600) == 44
+
+
+DOC = SCRIPT.with_name("table1-ant-humanoid.md")
+
+
+def test_the_detectable_differences_at_the_arms_own_sds(script):
+    """Issue 54 §2: where the arms' SDs differ, the detectable difference is Welch's at the arms'
+    own SDs, its range with both SDs at the ends of their own 4-df 95% intervals (the
+    pre-registered 0.60–2.87), and the pre-registered 4-df range at the pooled SD is given too.
+    Welch's power here is simulated, independently of adarl.stats' quadrature."""
+    from scipy import stats
+
+    data = script.load()
+    text = " ".join(DOC.read_text().split())
+
+    def arm(task, method):
+        scores = data[task][method]["scores"]
+        return np.array([scores[s] for s in sorted(scores)])
+
+    rng = np.random.default_rng(3)
+    z1, z2 = rng.standard_normal((2, 100_000, 5))
+    low4, high4 = np.sqrt(4 / stats.chi2.ppf([0.975, 0.025], 4))
+    quoted = {  # (task, baseline): detectable at the arms' own SDs, its range, as the doc writes
+        ("ant", "sac"): ("136", "82–391"),
+        ("humanoid", "sac"): ("1,513", "907–4,349"),
+        ("ant", "rnac"): ("131", "78–376"),
+        ("ant", "sac-parseval_parseval_coef-1e-05"): ("185", "111–533"),
+        ("ant", "sac-sparse_sparse_width-256"): ("396", "237–1,137"),
+        ("humanoid", "rnac"): ("1,512", "906–4,346"),
+        ("humanoid", "sac-parseval_parseval_coef-1e-05"): ("1,513", "907–4,348"),
+        ("humanoid", "sac-sparse_sparse_width-256"): ("2,203", "1,320–6,331"),
+    }
+    for (task, baseline), (detectable, interval) in quoted.items():
+        x, y = arm(task, "adarl"), arm(task, baseline)
+        d = float(detectable.replace(",", ""))
+        sims = z1 * x.std(ddof=1) + d, z2 * y.std(ddof=1)
+        power = np.mean(stats.ttest_ind(*sims, axis=1, equal_var=False).pvalue < 0.05)
+        assert power == pytest.approx(0.80, abs=0.01), (task, baseline, power)
+        low, high = (float(v.replace(",", "")) for v in interval.split("–"))
+        assert (d * low4, d * high4) == pytest.approx((low, high), rel=0.01)
+        assert f"{detectable} ({interval})" in text or f"{detectable} ({interval};" in text
+    # the pre-registered 4-df interval at the pooled SD (132 and 1,327, simulated in
+    # test_the_numbers_the_results_quote): 79–381 and 795–3,812
+    for pooled_detectable, interval in ((132, "79–381"), (1327, "795–3,812")):
+        low, high = (float(v.replace(",", "")) for v in interval.split("–"))
+        assert (pooled_detectable * low4, pooled_detectable * high4) == pytest.approx((low, high), rel=0.01)  # fmt: skip
+        assert interval in text
+    assert "1,327 at the pooled SD 637" in text and "1,513 would have been detected" in text
+
+
+def test_what_the_rows_say_of_one_seed_per_unit_on_ant(script):
+    """ "Ant SAC's five one-seed units took 738–792 s ... against 765–800 s per seed in the three
+    five-seed Parseval units (3,827–4,000 s each); Ant AdaRL's ... 843–878 s ... 1.14×"."""
+    import pandas as pd
+
+    def seconds(path):
+        rows = pd.read_csv(path)
+        rows = rows[rows["seed"] == rows["seed"].iloc[0]]
+        return (np.diff(rows["step"], prepend=0) / rows["steps_per_s"]).sum()
+
+    ant = script.ROWS / "ant"
+    sac = [seconds(ant / "sac" / f"seeds-{s}-train.csv.gz") for s in range(5)]
+    adarl = [seconds(ant / "adarl" / f"seeds-{s}-train.csv.gz") for s in range(5)]
+    parseval = [seconds(p) for p in sorted(ant.glob("sac-parseval_*/seeds-0-4-train.csv.gz"))]
+    assert len(parseval) == 3
+    assert (round(min(sac)), round(max(sac))) == (738, 792)
+    assert (round(min(parseval)), round(max(parseval))) == (3827, 4000)
+    assert (round(min(parseval) / 5), round(max(parseval) / 5)) == (765, 800)
+    assert (round(min(adarl)), round(max(adarl))) == (843, 878)
+    assert round(np.mean(adarl) / np.mean(sac), 2) == 1.14
+    text = " ".join(DOC.read_text().split())
+    for quoted in ("738–792 s each", "765–800 s per seed", "(3,827–4,000 s each)", "843–878 s", "1.14× SAC's"):  # fmt: skip
+        assert quoted in text
+
+
+def test_how_often_the_high_humanoid_adarl_seed_falls(script):
+    """ "seed 3 falls in 19 of its last 25 episodes"."""
+    rows = script.read_gzipped(script.ROWS / "humanoid" / "adarl" / "seeds-3-eval.csv.gz")
+    last = [int(r["length"]) for r in rows if r["dynamics"] == "nominal" and int(r["step"]) > 250_000]  # fmt: skip
+    assert len(last) == 25 and sum(length < 1000 for length in last) == 19
+    assert "seed 3 falls in 19 of its last 25 episodes" in " ".join(DOC.read_text().split())
+
+
+def test_the_humanoid_critics_at_the_first_two_cuts(script):
+    """ "its critics are at 34–36 after the first (one seed's q2 already at 34) and 26–30 after
+    the second"."""
+    rows = script.load()["humanoid"]["adarl"]["truncations"]
+    steps = sorted({int(r["step"]) for r in rows})
+
+    def critics(cut):
+        return [int(r["new_rank"]) for r in rows if r["layer"] != "actor_1" and int(r["step"]) == steps[cut - 1]]  # fmt: skip
+
+    first = critics(1)
+    assert (min(first), max(first)) == (34, 36) and first.count(34) == 1
+    assert min(critics(2)) == 26 and max(critics(2)) == 30
+    q2 = [int(r["new_rank"]) for r in rows if r["layer"] == "q2_1" and int(r["step"]) == steps[0]]
+    assert min(q2) == 34
+    text = " ".join(DOC.read_text().split())
+    assert "its critics are at 34–36 after the first (one seed's q2 already at 34) and 26–30 after the second" in text  # fmt: skip
