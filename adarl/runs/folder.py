@@ -40,7 +40,7 @@ from adarl.runs.layout import (
     TRAIN_CSV,
 )
 from adarl.runs.lock import RunLock, lock_holder, refuse_non_empty
-from adarl.runs.provenance import write_environment
+from adarl.runs.provenance import check_resume_numerics, write_environment
 
 #: config fields a run may change between its checkpoint and a resume (the others are the run)
 RESUMABLE_EDITS = (
@@ -249,12 +249,15 @@ def start_new(run_dir: Path, lock: RunLock, config, algo: str, command: str) -> 
 
 
 def lock_to_resume(run_dir: Path, lock: RunLock) -> bool:
-    """Take the lock of a run to resume; False (and a line on stderr) if it is complete (DONE)."""
+    """Take the lock of a run to resume; False (and a line on stderr) if it is complete (DONE).
+    A one-line UsageError if this process's numeric settings differ from the run's
+    (`provenance.check_resume_numerics`)."""
     check_resume_dir(run_dir)
     lock.acquire(new=False)
     if (run_dir / DONE_FILE).exists():
         print(f"run {run_dir} is already complete", file=sys.stderr)
         return False
+    check_resume_numerics(run_dir)  # x64, precision, platform: before anything is read or written
     return True
 
 

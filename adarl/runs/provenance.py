@@ -1,4 +1,5 @@
-"""What produced a run: package versions, adarl's git commit, Python, CPU and XLA flags.
+"""What produced a run: package versions, adarl's git commit, Python, CPU, XLA flags and the
+numeric settings (x64, matmul precision, platform, …) that a resume must share (`numerics`).
 
 Every trainer writes `environment.json` into a new run folder (`write_environment`) and appends
 what each resume ran to its `resumes` (`record_resume`); `adarl report` lists the records and
@@ -45,7 +46,89 @@ def environment_record() -> dict:
             else os.cpu_count(),
         },
         "xla_flags": os.environ.get("XLA_FLAGS"),
+        "numerics": numerics(),
     }
+
+
+# ----------------------------------------------------------------------------- numerics
+#: JAX settings (`jax.config` names) that change a run's numbers: float64 everywhere, the
+#: precision of matrix products (on accelerators), the random-number generator and its
+#: sharding rule, and op-by-op execution instead of compiled (fused) computations
+NUMERIC_CONFIG = (
+    "jax_enable_x64",
+    "jax_default_matmul_precision",
+    "jax_default_prng_impl",
+    "jax_threefry_partitionable",
+    "jax_disable_jit",
+)
+#: XLA flags that change where computations run, not their numbers: adarl sets one CPU device
+#: per core (`adarl.runtime`), and a seed's numbers do not depend on its device
+NEUTRAL_XLA_FLAGS = ("xla_force_host_platform_device_count",)
+#: where each numeric setting comes from, for the refusal's hint
+NUMERIC_SOURCES = {
+    "platform": "JAX_PLATFORMS",
+    "xla_flags": "XLA_FLAGS",
+    **{name: name.upper() for name in NUMERIC_CONFIG},
+}
+
+
+def numerics() -> dict:
+    """The settings of this process that change a run's numbers (docs/reliability.md): each of
+    `NUMERIC_CONFIG`, JAX's platform (`jax.default_backend()`: cpu, gpu, tpu) and XLA_FLAGS
+    less `NEUTRAL_XLA_FLAGS`, sorted (None when none is left). Imports JAX."""
+    import jax
+
+    def plain(value):
+        value = getattr(value, "value", value)  # an enum (dtype promotion and the like)
+        return value if value is None or isinstance(value, bool | int | float) else str(value)
+
+    flags = sorted(
+        flag
+        for flag in os.environ.get("XLA_FLAGS", "").split()
+        if not flag.lstrip("-").startswith(NEUTRAL_XLA_FLAGS)
+    )
+    return {
+        **{name: plain(getattr(jax.config, name, None)) for name in NUMERIC_CONFIG},
+        "platform": jax.default_backend(),
+        "xla_flags": " ".join(flags) or None,
+    }
+
+
+def recorded_numerics(record: dict | None) -> dict | None:
+    """The numeric settings a run's record says it last trained under: those of its newest
+    resume that recorded them, else those it was made with; None for runs made before they
+    were recorded (or a record whose `numerics` is not an object)."""
+    for part in [*reversed((record or {}).get("resumes", [])), record or {}]:
+        found = part.get("numerics")
+        if isinstance(found, dict):
+            return found
+    return None
+
+
+def check_resume_numerics(run_dir: str | os.PathLike) -> None:
+    """A one-line UsageError if this process would resume the run under numeric settings
+    (`numerics`) other than those it last trained under, naming each setting, both values and
+    the variable that sets it: the resumed steps would differ from an uninterrupted run's
+    (issue 55). Runs without a record, or made before settings were recorded, are not checked;
+    a damaged record is left to `record_resume`'s warning."""
+    try:
+        then = recorded_numerics(read_environment(run_dir))
+    except UsageError:
+        return
+    if then is None:
+        return
+    now = numerics()
+    changed = [
+        f"{name} {then[name]!r} but this process has {now[name]!r} ({NUMERIC_SOURCES[name]})"
+        for name in now
+        if name in then and then[name] != now[name]
+    ]
+    if changed:
+        raise UsageError(
+            f"run folder {run_dir} was trained with {'; '.join(changed)}; a resume under other "
+            "numeric settings would not continue it exactly: set them as the run had them "
+            "(environment.json 'numerics'), or start a new run"
+        )
 
 
 def write_environment(run_dir: str | os.PathLike, extra: dict | None = None) -> None:
@@ -68,6 +151,7 @@ def record_resume(run_dir: str | os.PathLike, step: int) -> None:
         return
     now = environment_record()
     entry = {"step": int(step), "adarl": now["adarl"], "packages": now["packages"]}
+    entry["numerics"] = now["numerics"]
     resumes = [*record.get("resumes", []), entry]
     atomic_write_json(Path(run_dir) / ENVIRONMENT_FILE, {**record, "resumes": resumes})
 
