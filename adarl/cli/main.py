@@ -1,8 +1,11 @@
 """`adarl` entry point.
 
 Each command is a module in `adarl.cli` exposing `HELP` (one line; `DESCRIPTION`, if any, for its
-`--help`), `add_arguments(parser)` and `run(args) -> int`. Modules keep heavy imports (JAX,
-MuJoCo) inside `run` so `adarl --help` is fast.
+`--help`), `add_arguments(parser)` and `run(args) -> int`. The modules import only the standard
+library and light adarl modules at their top; JAX, MuJoCo, Gymnasium, pandas and matplotlib are
+imported inside `run` (or `add_arguments`) where a command needs them, and `main` adds the
+arguments of the one command it was given only, so `adarl --version`, `--help` and usage errors
+answer in well under a second (tests/cli/test_startup.py).
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Iterable
 
 from adarl import __version__
 from adarl.cli import evaluate, export, play, ranks, report, sweep, tasks, theory, train
@@ -37,7 +41,10 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(commands: Iterable[str] | None = None) -> argparse.ArgumentParser:
+    """The `adarl` parser, with the arguments of `commands` (default: every command); the others
+    are listed by name and help line only (their `add_arguments` may import more)."""
+    filled = set(COMMANDS) if commands is None else set(commands)
     parser = OneLineParser(
         prog="adarl",
         description="AdaRL: rank-adaptive SAC for robust RL under model uncertainty.",
@@ -50,10 +57,18 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(
             name, help=module.HELP, description=description, conflict_handler="resolve"
         )
-        module.add_arguments(p)
-        add_common_arguments(p)
-        p.set_defaults(_run=module.run)
+        if name in filled:
+            module.add_arguments(p)
+            add_common_arguments(p)
+            p.set_defaults(_run=module.run)
     return parser
+
+
+def _command_in(argv: list[str]) -> str | None:
+    """The command `argv` names: its first word that is not an option (`adarl` itself takes no
+    option with a value), if it is a command."""
+    word = next((a for a in argv if not a.startswith("-")), None)
+    return word if word in COMMANDS else None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -64,8 +79,13 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault(
         "JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "adarl", "jax")
     )
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    named = _command_in(argv)
+    parser = build_parser([named] if named else [])
     args = parser.parse_args(argv)
+    if getattr(args, "command", None) and args.command != named:  # not the word we guessed
+        parser = build_parser()
+        args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2

@@ -10,12 +10,13 @@ import textwrap
 from pathlib import Path
 
 from adarl.errors import UsageError
-from adarl.sweeps.spec import list_presets
 
 HELP = "run a sweep (tasks x algorithms x seeds) from a YAML file or preset, locally or on Ray"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from adarl.sweeps.spec import list_presets
+
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     presets = textwrap.fill(
         "presets: " + ", ".join(list_presets()), 78, subsequent_indent="  ", break_on_hyphens=False
@@ -148,8 +149,7 @@ def tracking_flags(args: argparse.Namespace, sweep_name: str) -> tuple[str, ...]
 def run(args: argparse.Namespace) -> int:
     from adarl.executor import default_workers
     from adarl.files import check_writable_dir
-    from adarl.sweeps import manifest, runner, spec
-    from adarl.sweeps.job import start_executor
+    from adarl.sweeps import spec
 
     if not args.progress_every > 0:  # NaN too; inf: never
         raise UsageError(f"--progress-every must be seconds > 0, got {args.progress_every:g}")
@@ -159,6 +159,9 @@ def run(args: argparse.Namespace) -> int:
             f"{args.backend}; allowed: --backend ray --address HOST:PORT, or no --address"
         )
     sweep = spec.load(args.spec)
+    from adarl.sweeps import manifest, runner  # after the spec: a bad name answers at once
+    from adarl.sweeps.job import start_executor
+
     out = Path(args.out) if args.out else Path("sweeps") / sweep.name
     check_writable_dir(out)  # a dry run too: it promises what a real one would do
     manifest.check_compatible(manifest.read(out), sweep, out)

@@ -160,3 +160,6 @@ def _entry_point(env_id: str, task: str) -> str:
     name = f"make_{task}"
     globals()[name] = _IdEntryPoint(env_id, task)
     return f"{__name__}:{name}"
+
+
+register_envs()  # at import: `import adarl` imports this module when Gymnasium loads
