@@ -22,7 +22,11 @@ class RunConfig:
 
     # --- run
     algo: str = ""  # the algorithm (adarl train --algo)
-    task: str = "hopper"  # hopper, walker2d, ant or humanoid (adarl tasks)
+    # hopper, walker2d, ant, humanoid, or any Gymnasium id, e.g. HalfCheetah-v5 (adarl tasks)
+    task: str = "hopper"
+    # Gymnasium keywords of the task's env, k=v,k=v or JSON, e.g. xml_file=my_robot.xml
+    env_kwargs: str = ""
+    env_module: str = ""  # a module to import first, which registers the task's Gymnasium id
     # physics schedule: paper, ompo, nominal, uniform, default, fixed:p=v,… (docs/envs.md)
     dynamics: str = "paper"
     physics: str = "consistent"  # consistent (recompile: masses follow geometry) or ompo
@@ -71,8 +75,11 @@ class RunConfig:
 
     def env_options(self) -> dict:
         """`adarl.envs.make`'s keywords for this run's environments, spelt as the fields are."""
-        return {
+        options = {
             "physics": self.physics,
             "model_version": self.model_version,
             "max_episode_steps": self.max_episode_steps,
         }
+        if self.env_kwargs or self.env_module:  # a paper task's make() takes neither
+            options |= {"env_kwargs": self.env_kwargs, "env_module": self.env_module}
+        return options

@@ -155,7 +155,7 @@ ALGORITHMS: dict[str, Algorithm] = {
 ALGOS: tuple[str, ...] = tuple(ALGORITHMS)
 # fields added to the configs after run folders had been written without them, with the value
 # those runs had: a config.yaml that lacks one keeps that value on resume (`runs.folder`)
-ADDED_FIELDS = {"backend": "host", "device_solver": "xml"}
+ADDED_FIELDS = {"backend": "host", "device_solver": "xml", "env_kwargs": "", "env_module": ""}
 
 
 def get(name: str) -> Algorithm:
@@ -215,6 +215,13 @@ def resolve_config(
         parsed[name] = field_value(name, value, type_text(hints[name]))
     task = parsed.get("task", entry.presets[preset].get("task", cls.task))
     values.update(entry.task_defaults.get(task, {}))
+    if "max_episode_steps" not in parsed and "max_episode_steps" not in entry.presets[preset]:
+        from adarl.envs.tasks import registered_time_limit
+
+        module = str(parsed.get("env_module", entry.presets[preset].get("env_module", "")))
+        limit = registered_time_limit(str(task), module)  # a Gymnasium id's own (Reacher: 50)
+        if limit:
+            values["max_episode_steps"] = limit
     values.update(entry.presets[preset])
     values.update(parsed)
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adarl.envs.params import PARAMS, Sinusoid, check_given
-from adarl.envs.tasks import get_task
+from adarl.envs.params import Sinusoid, check_given, param_check
+from adarl.envs.tasks import TaskSpec, get_task
 from adarl.errors import UsageError, check_choice
 
 #: Schedule names `parse_dynamics` understands.
@@ -41,7 +41,7 @@ class DynamicsSchedule:
     constants left out take the task's Gymnasium defaults.
     """
 
-    task: str
+    task: str | TaskSpec
     name: str = "custom"
     constants: Mapping[str, float] = field(default_factory=dict)
     sinusoids: Mapping[str, Sinusoid] = field(default_factory=dict)
@@ -58,29 +58,33 @@ class DynamicsSchedule:
                 f"parameter {sorted(both)[0]!r} is both constant and varying; allowed: one of the two"
             )
         for name, s in self.sinusoids.items():
-            if name in spec.optional_params:
+            if name in spec.optional_params and spec.paper:
                 raise UsageError(
                     f"parameter {name!r} cannot vary; allowed: a constant value (optional "
                     f"parameters of {spec.name}: {', '.join(spec.optional_params)})"
                 )
             if not isinstance(s, Sinusoid):
                 raise UsageError(f"bad varying value {s!r} for {name}; allowed: a Sinusoid")
-            PARAMS[name].check(s.low), PARAMS[name].check(s.high)
+            param_check(name, s.low), param_check(name, s.high)
         constants = {
-            p: PARAMS[p].check(self.constants.get(p, default))
+            p: param_check(p, self.constants.get(p, default))
             for p, default in spec.params.items()
             if p not in self.sinusoids
         }
-        optional = [p for p in spec.optional_params if p in self.constants]  # only those set
-        constants |= {p: PARAMS[p].check(self.constants[p]) for p in optional}
+        # optional parameters (then addressed ones, in the order given) only where set
+        extra = [p for p in spec.optional_params if p in self.constants or p in self.sinusoids]
+        extra += [p for p in (*self.constants, *self.sinusoids) if _addressed(p) and p not in extra]
+        constants |= {p: param_check(p, self.constants[p]) for p in extra if p in self.constants}
         if self.mode == "default" and (self.sinusoids or constants != dict(spec.params)):
             raise _default_takes_no_values("default")
         object.__setattr__(self, "task", spec.name)
+        object.__setattr__(self, "spec", spec)
         object.__setattr__(self, "constants", constants)
+        order = (*spec.params, *extra)
         object.__setattr__(
-            self, "sinusoids", {p: self.sinusoids[p] for p in spec.params if p in self.sinusoids}
+            self, "sinusoids", {p: self.sinusoids[p] for p in order if p in self.sinusoids}
         )
-        object.__setattr__(self, "_order", (*spec.params, *optional))
+        object.__setattr__(self, "_order", order)
 
     @property
     def varies(self) -> bool:
@@ -135,24 +139,57 @@ class DynamicsSchedule:
                 out[p] = s.formula()
         return out
 
-    def with_overrides(self, **values: float) -> DynamicsSchedule:
-        """A copy with `values` fixed on top (their sinusoids dropped); the name records them."""
+    def with_overrides(self, **values) -> DynamicsSchedule:
+        """A copy with `values` on top: a number fixes a parameter (its sinusoid dropped), a
+        range `"LOW..HIGH"` (or `"LOW..HIGH@F"`) makes it vary over [LOW, HIGH]: a sinusoid of
+        centre (LOW+HIGH)/2, amplitude (HIGH-LOW)/2 and frequency F (default: the schedule's, or
+        0.5) in `paper`/`ompo`, a uniform draw in `uniform`. The name records them."""
         if not values:
             return self
         if self.mode == "default":
             raise _default_takes_no_values(f"{self.name} with {', '.join(values)}")
-        spec = get_task(self.task)
+        spec = self.spec
         for name in values:
             _check_name(spec, name)
-        values = {k: check_given(k, v, spec.all_params[k]) for k, v in values.items()}
-        suffix = ",".join(f"{k}={v!r}" for k, v in values.items())
+        fixed, varying = {}, {}
+        for k, v in values.items():
+            if isinstance(v, str) and ".." in v:
+                varying[k] = self._range(spec, k, v)
+            else:
+                fixed[k] = check_given(k, v, _default(spec, k))
+        suffix = ",".join(
+            f"{k}={fixed[k]!r}" if k in fixed else f"{k}={values[k].strip()}" for k in values
+        )
         return DynamicsSchedule(
-            task=self.task,
+            task=spec,
             name=f"{self.name}{',' if ':' in self.name else ':'}{suffix}",
-            constants={**self.constants, **values},
-            sinusoids={p: s for p, s in self.sinusoids.items() if p not in values},
+            constants={**{p: c for p, c in self.constants.items() if p not in varying}, **fixed},
+            sinusoids={**{p: s for p, s in self.sinusoids.items() if p not in values}, **varying},
             mode=self.mode,
         )
+
+    def _range(self, spec, name: str, text: str) -> Sinusoid:
+        """`"LOW..HIGH[@F]"` -> the Sinusoid over [LOW, HIGH] (bounds checked as given values)."""
+        body, _, freq = text.strip().partition("@")
+        low, _, high = body.partition("..")
+        if self.name.split(":")[0] in ("nominal", "fixed") or self.mode == "default":
+            raise UsageError(
+                f"range {name}={text.strip()} in dynamics {self.name!r}; allowed: a range in "
+                "paper, ompo or uniform (nominal and fixed hold values)"
+            )
+        try:
+            lo, hi = (check_given(name, x.strip(), _default(spec, name)) for x in (low, high))
+            f = float(freq) if freq else _frequency(self)
+        except (UsageError, ValueError):
+            raise UsageError(
+                f"bad range {name}={text.strip()!r}; allowed: LOW..HIGH[@FREQUENCY] with LOW <= "
+                f"HIGH, both plausible for {name} (default {_default(spec, name):g})"
+            ) from None
+        if not lo <= hi or not np.isfinite(f):
+            raise UsageError(
+                f"bad range {name}={text.strip()!r}; allowed: LOW <= HIGH, a finite frequency"
+            )
+        return Sinusoid((lo + hi) / 2, (hi - lo) / 2, f)
 
 
 def parse_dynamics(text: str | DynamicsSchedule, task: str) -> DynamicsSchedule:
@@ -173,16 +210,16 @@ def parse_dynamics(text: str | DynamicsSchedule, task: str) -> DynamicsSchedule:
         raise UsageError(f"unknown dynamics {text!r}; allowed: {_SYNTAX}")
     values = _parse_values(text, kind, tail, spec) if colon else {}
     if kind == "default":
-        return DynamicsSchedule(spec.name, name="default", mode="default")
+        return DynamicsSchedule(spec, name="default", mode="default")
     paper = spec.schedules["paper"]
     base = {
-        "paper": DynamicsSchedule(spec.name, "paper", sinusoids=paper),
-        "ompo": DynamicsSchedule(spec.name, "ompo", sinusoids=spec.schedules["ompo"]),
+        "paper": DynamicsSchedule(spec, "paper", sinusoids=paper),
+        "ompo": DynamicsSchedule(spec, "ompo", sinusoids=spec.schedules["ompo"]),
         "nominal": DynamicsSchedule(
-            spec.name, "nominal", constants={p: s.center for p, s in paper.items()}
+            spec, "nominal", constants={p: s.center for p, s in paper.items()}
         ),
-        "uniform": DynamicsSchedule(spec.name, "uniform", sinusoids=paper, mode="uniform"),
-        "fixed": DynamicsSchedule(spec.name, "fixed"),
+        "uniform": DynamicsSchedule(spec, "uniform", sinusoids=paper, mode="uniform"),
+        "fixed": DynamicsSchedule(spec, "fixed"),
     }[kind]
     return base.with_overrides(**values)
 
@@ -194,11 +231,47 @@ def _default_takes_no_values(what: str) -> UsageError:
     )
 
 
+def _addressed(name: str) -> bool:
+    from adarl.envs.params import is_addressed
+
+    return is_addressed(name)
+
+
+def _default(spec, name: str) -> float:
+    """The default of a named or addressed parameter of `spec` (the compiled model's value)."""
+    if name in spec.all_params:
+        return spec.all_params[name]
+    from adarl.envs.elements import address_default
+
+    return address_default(xml_path(spec), name)
+
+
+def xml_path(spec) -> str:
+    """The XML of `spec`'s model (the paper's tasks: Gymnasium's own file)."""
+    if spec.xml_path:
+        return spec.xml_path
+    from adarl.envs.model import _xml_path
+
+    return _xml_path(spec)
+
+
+def _frequency(schedule: DynamicsSchedule) -> float:
+    """The frequency a range takes by default: the schedule's first sinusoid's, else 0.5."""
+    first = next(iter(schedule.sinusoids.values()), None)
+    return first.frequency if first is not None else 0.5
+
+
 def _check_name(spec, name: str) -> None:
-    if name not in spec.all_params:
-        raise UsageError(
-            f"unknown {spec.name} parameter {name!r}; allowed: {', '.join(spec.all_params)}"
-        )
+    if name in spec.all_params:
+        return
+    if spec.kind != "gym" and _addressed(name):
+        _default(spec, name)  # the element must exist in the model: one line naming it
+        return
+    allowed = ", ".join(spec.all_params) or "none (fixed dynamics)"
+    where = (
+        " or KIND:NAME.ATTR (body:torso.mass, ...; adarl tasks TASK)" if spec.kind != "gym" else ""
+    )
+    raise UsageError(f"unknown {spec.name} parameter {name!r}; allowed: {allowed}{where}")
 
 
 def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
@@ -218,5 +291,5 @@ def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
             raise UsageError(
                 f"parameter {name!r} given twice in dynamics {text!r}; allowed: once each"
             )
-        values[name] = check_given(name, value, spec.all_params[name])
+        values[name] = value if ".." in value else check_given(name, value, _default(spec, name))
     return values

@@ -20,7 +20,8 @@ from gymnasium.envs.registration import load_env_creator
 
 from adarl.envs.dynamics import DynamicsSchedule, parse_dynamics
 from adarl.envs.model import ModelBuilder, ModelEditor
-from adarl.envs.tasks import PHYSICS, TaskSpec, get_task
+from adarl.envs.params import is_addressed
+from adarl.envs.tasks import PHYSICS, TaskSpec, get_task, make_raw_env
 from adarl.errors import UsageError, check_choice
 
 #: MuJoCo's full integration state: qpos, qvel, act, time, warmstart, ctrl, applied forces, ...
@@ -29,6 +30,33 @@ STATE_SIG = mujoco.mjtState.mjSTATE_INTEGRATION
 #: of the main body, Humanoid: xipos for the centre of mass) or put in observations. After
 #: `mj_step` they belong to an intermediate point of the step, so they are stored, not recomputed.
 DERIVED_FIELDS = ("xpos", "xquat", "xipos", "cinert", "cvel", "qfrc_actuator", "cfrc_ext")
+#: Any other MuJoCo task may read more of them before a step (Reacher and Pusher: the fingertip's
+#: and the object's xpos; a user's env: sites, sensors), so its states keep all of these.
+GENERIC_DERIVED_FIELDS = (
+    *DERIVED_FIELDS,
+    "xmat",
+    "ximat",
+    "xanchor",
+    "xaxis",
+    "geom_xpos",
+    "geom_xmat",
+    "site_xpos",
+    "site_xmat",
+    "subtree_com",
+    "cdof",
+    "cacc",
+    "cfrc_int",
+    "qacc",
+    "qfrc_bias",
+    "qfrc_passive",
+    "qfrc_constraint",
+    "actuator_force",
+    "actuator_length",
+    "actuator_velocity",
+    "sensordata",
+    "ten_length",
+    "energy",
+)
 _STATE_VERSION = 1
 
 
@@ -55,8 +83,14 @@ class DynamicsEnv(gymnasium.Wrapper):
         self.physics = check_choice("physics", physics, PHYSICS)
         self.max_episode_steps = int(max_episode_steps)
         self._raw = env.unwrapped
+        self._derived = DERIVED_FIELDS if task.paper else GENERIC_DERIVED_FIELDS
         if schedule.mode == "default":
             self._builder = None
+        elif not task.paper:
+            from adarl.envs.elements import GenericBuilder
+
+            textures = self._raw.render_mode is not None
+            self._builder = GenericBuilder(self._raw.fullpath, textures=textures)
         elif physics == "ompo":
             self._builder = ModelEditor(task, self._raw.model)
         else:
@@ -144,7 +178,7 @@ class DynamicsEnv(gymnasium.Wrapper):
             mj_state = np.empty(mujoco.mj_stateSize(raw.model, STATE_SIG))
             mujoco.mj_getState(raw.model, raw.data, mj_state, STATE_SIG)
             state["mj_state"] = mj_state
-            state["mj_derived"] = {f: getattr(raw.data, f).copy() for f in DERIVED_FIELDS}
+            state["mj_derived"] = {f: getattr(raw.data, f).copy() for f in self._derived}
             state["np_random"] = copy.deepcopy(raw.np_random.bit_generator.state)
         return state
 
@@ -212,8 +246,12 @@ class DynamicsEnv(gymnasium.Wrapper):
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, raw.width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, raw.height)
         raw.model, raw.data = model, data
-        raw.init_qpos = model.qpos0.copy()
-        raw.init_qvel = np.zeros(model.nv)
+        if self.task.paper or np.array_equal(
+            raw.init_qpos, old.qpos0
+        ):  # a user's env may set its own
+            raw.init_qpos = model.qpos0.copy()
+        if self.task.paper or not np.any(raw.init_qvel):
+            raw.init_qvel = np.zeros(model.nv)
         renderer = raw.mujoco_renderer
         if renderer is not None:
             if renderer._viewers:
@@ -241,35 +279,47 @@ def model_sizes(model: mujoco.MjModel) -> tuple:
 
 
 def make(
-    task: str,
+    task: str | TaskSpec,
     dynamics: str | DynamicsSchedule = "paper",
     seed: int | None = 0,
     *,
-    max_episode_steps: int = 1000,
+    max_episode_steps: int | None = None,
     render_mode: str | None = None,
     physics: str = "consistent",
     model_version: str = "v5",
+    env_kwargs: str | dict = "",
+    env_module: str = "",
     **overrides: float,
 ) -> DynamicsEnv:
     """Task env following `dynamics` (a name like "paper" or "fixed:torso_length=0.5", or a
     `DynamicsSchedule`), with `overrides` fixed on top. `seed` seeds the first reset and the
     schedule's draws: the same seed gives the same parameter sequence. `physics`: `consistent`
     (recompile, masses follow geometry) or `ompo` (edit the compiled default model as OMPO does);
-    `model_version`: Gymnasium's `v5` or `v4` models. A task named `gym:<id>` is any registered
-    Gymnasium env with fixed dynamics (`adarl.envs.plain`)."""
+    `model_version`: Gymnasium's `v5` or `v4` models. `task` may also be any registered Gymnasium
+    id (`HalfCheetah-v5`; `env_module` imports the package that registers a user's own, and
+    `env_kwargs` are the env's keywords, such as `xml_file`): an env built on Gymnasium's
+    `MujocoEnv` gets generic and addressed parameters (adarl.envs.elements), any other env
+    fixed dynamics (`adarl.envs.plain`). `max_episode_steps` (None: 1000 for the paper's four,
+    the registered limit otherwise)."""
     check_choice("physics", physics, PHYSICS)
-    if isinstance(task, str) and task.startswith("gym:"):
+    spec = get_task(task, model_version, env_kwargs=env_kwargs or "", env_module=env_module)
+    if max_episode_steps is None:
+        max_episode_steps = spec.max_episode_steps
+    if not spec.paper and physics != "consistent":
+        raise UsageError(
+            f"physics {physics!r} applies to hopper, walker2d, ant, humanoid; allowed for task "
+            f"{spec.name!r}: consistent"
+        )
+    if spec.kind == "gym":
         from adarl.envs.plain import make_plain
 
-        if (physics, model_version) != ("consistent", "v5"):
-            raise UsageError(
-                f"task {task!r} with physics {physics!r} and model version {model_version!r} does not "
-                "exist; allowed: physics 'consistent' and version 'v5' for gym: tasks (the "
-                "switches apply to hopper, walker2d, ant, humanoid)"
-            )
-        return make_plain(task, dynamics, seed, max_episode_steps=max_episode_steps, **overrides)
-    spec = get_task(task, model_version)
-    schedule = parse_dynamics(dynamics, spec.name).with_overrides(**overrides)
+        return make_plain(spec, dynamics, seed, max_episode_steps=max_episode_steps, **overrides)
+    schedule = parse_dynamics(dynamics, spec).with_overrides(**overrides)
+    if physics == "ompo" and any(is_addressed(p) for p in schedule.centroid()):
+        raise UsageError(
+            "addressed parameters (KIND:NAME.ATTR) need physics 'consistent'; allowed under "
+            "ompo: the task's named parameters"
+        )
     if (
         isinstance(max_episode_steps, bool)
         or not isinstance(max_episode_steps, int)
@@ -281,7 +331,10 @@ def make(
     ):
         raise UsageError(f"bad seed {seed!r}; allowed: an integer >= 0 or None")
     gym_spec = gymnasium.spec(spec.gym_id)
-    raw = load_env_creator(gym_spec.entry_point)(render_mode=render_mode)
+    if spec.paper:
+        raw = load_env_creator(gym_spec.entry_point)(render_mode=render_mode)
+    else:
+        raw = make_raw_env(spec, render_mode)
     raw.spec = copy.copy(gym_spec)
     raw.spec.max_episode_steps = max_episode_steps
     return DynamicsEnv(

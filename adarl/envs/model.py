@@ -37,6 +37,8 @@ import mujoco
 import numpy as np
 from gymnasium.envs.mujoco.mujoco_env import expand_model_path
 
+from adarl.envs.elements import ElementEditor
+from adarl.envs.params import is_addressed
 from adarl.envs.tasks import PHYSICS, TaskSpec, get_task
 from adarl.errors import check_choice
 
@@ -101,13 +103,23 @@ class ModelBuilder:
         if not textures:
             _strip_textures(self.spec)
         self._base = _Snapshot(self.spec, self.task)
+        self._elements = ElementEditor(self.spec, xml_path or _xml_path(self.task))
         self._applied: dict[str, float] | None = None  # what self.spec holds now
 
     def compile(self, params: dict[str, float]) -> mujoco.MjModel:
-        """A new model at `params` (the task's full parameter dict)."""
+        """A new model at `params` (the task's full parameter dict, addressed parameters
+        `KIND:NAME.ATTR` included: adarl.envs.elements)."""
         previous, self._applied = self._applied, None  # unknown if anything below fails
+        addressed = any(is_addressed(name) for name in params)
+        if addressed or self._elements.touched:  # back to the XML's values, then all of params
+            self._elements.restore()
+            previous = None
         apply_params(self.spec, self.task, params, self._base, previous)
+        if addressed:
+            self._elements.apply_addressed(params)
         model = self.spec.compile()
+        if addressed:
+            model = self._elements.settle(model, params)
         set_body_masses(model, self.task, params)
         self._applied = dict(params)
         return model

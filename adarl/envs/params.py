@@ -54,6 +54,7 @@ PARAMS: dict[str, Param] = {
         Param("friction_scale", "x", "factor on every geom friction coefficient", 0.0, False),
         Param("damping_scale", "x", "factor on every joint damping", 0.0, False),
         Param("stiffness", "N m/rad", "joint spring stiffness of the stiffened joints", 0.0, False),
+        Param("actuator_scale", "x", "factor on every actuator gear (strength)", 0.0, True),
         # optional parameters (TaskSpec.optional_params): the M2TD3 / RRLS uncertainty sets
         Param("floor_friction", "", "sliding friction of the floor geom", 0.0, False),
         Param("torso_mass", "kg", "mass of the torso body (inertia kept)", 0.0, True),
@@ -68,7 +69,7 @@ PARAMS: dict[str, Param] = {
 #: the task's default: |value| <= 10 x scale, and value >= scale / 10 where it must be > 0.
 PLAUSIBLE_FACTOR = 10.0
 #: The scale of a parameter whose default is 0 (wind, stiffness): a typical magnitude instead.
-ZERO_DEFAULT_SCALE = {"wind": 2.0, "stiffness": 10.0}
+ZERO_DEFAULT_SCALE = {"wind": 2.0, "stiffness": 10.0, "gravity": 9.81}
 #: Parameters whose published uncertainty sets reach further than `PLAUSIBLE_FACTOR`: M2TD3's
 #: Ant leg masses go from 0.01 to 3.0 kg around a default of 0.039 kg (docs/evaluation.md).
 WIDE_FACTOR = {
@@ -77,13 +78,48 @@ WIDE_FACTOR = {
 }
 
 
+def is_addressed(name) -> bool:
+    """An addressed parameter name, `KIND:NAME.ATTR[i]` (adarl.envs.elements)?"""
+    return (
+        isinstance(name, str)
+        and ":" in name
+        and name.split(":", 1)[0]
+        in (
+            "body",
+            "geom",
+            "joint",
+            "actuator",
+        )
+    )
+
+
+def param_info(name: str) -> Param:
+    """The `Param` of a named parameter, or of an addressed one (its attribute's bound)."""
+    if name in PARAMS:
+        return PARAMS[name]
+    if is_addressed(name):
+        from adarl.envs.elements import parse_address
+
+        info = parse_address(name).info
+        return Param(name, info.unit, info.meaning, info.lower, info.strict)
+    raise UsageError(f"unknown parameter {name!r}")
+
+
+def param_check(name: str, value) -> float:
+    """`value` as a float of the sign `name` allows (`Param.check`), named or addressed."""
+    return param_info(name).check(value)
+
+
 def plausible_range(name: str, default: float) -> tuple[float, float, str]:
     """`(low, high, why)`: the values of `name` accepted from a user when the task's default is
     `default` (within `PLAUSIBLE_FACTOR` of it, and of the allowed sign)."""
     factor = WIDE_FACTOR.get(name, PLAUSIBLE_FACTOR)
+    if is_addressed(name) and name.split(":", 1)[0] == "body":
+        factor = 100.0  # a body's mass: M2TD3's published sets reach 100x (WIDE_FACTOR)
+    info = param_info(name)
     scale = abs(default) or ZERO_DEFAULT_SCALE.get(name, 1.0)
     high = factor * scale
-    low = scale / factor if PARAMS[name].strict else (-high if PARAMS[name].lower is None else 0.0)
+    low = scale / factor if info.strict else (-high if info.lower is None else 0.0)
     why = f"within {factor:g}x of {'its default' if default else 'a typical'} {scale:g}"
     return low, high, f"{why}; docs/envs.md"
 
@@ -106,12 +142,12 @@ def check_given(name: str, value, default: float) -> float:
     try:
         if type(value).__name__ in ("bool", "bool_"):  # True is 1 (numpy's too), no length
             raise UsageError(name)
-        number = PARAMS[name].check(value)
+        number = param_info(name).check(value)
     except UsageError:
         low, high, why = plausible_range(name, default)
         raise UsageError(
             f"bad value {value!r} for {name}; allowed: {low:g} to {high:g} "
-            f"({PARAMS[name].allowed}, {why})"
+            f"({param_info(name).allowed}, {why})"
         ) from None
     return check_plausible(name, number, default)
 

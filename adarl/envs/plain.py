@@ -1,8 +1,11 @@
-"""Any registered Gymnasium env as a fixed-dynamics task, named `gym:<id>` (e.g. `gym:Pendulum-v1`).
+"""Any registered Gymnasium env not built on `MujocoEnv` as a fixed-dynamics task, named by its id
+(`Pendulum-v1`, or `gym:Pendulum-v1` as older runs recorded it).
 
-Used for quick learning checks (the trainer's Pendulum test) with the same interface as the
-MuJoCo tasks: `episode_index`, empty `dynamics_params`, `info["dynamics"]`/`info["episode_index"]`
-and `get_state`/`set_state` (for envs whose state is the `state` attribute, like classic control).
+The same interface as the MuJoCo tasks: `episode_index`, empty `dynamics_params`,
+`info["dynamics"]`/`info["episode_index"]` and `get_state`/`set_state`. An env's state is
+captured when it is its `state` attribute (classic control) and the env's RNG; for any other env
+a checkpoint records that it cannot be, and resuming from it is refused in one line (never a
+silently inexact resume).
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import numpy as np
 
 from adarl.errors import UsageError
 
-PREFIX = "gym:"
+PREFIX = "gym:"  # how older runs named these tasks
 
 
 class PlainEnv(gymnasium.Wrapper):
@@ -48,16 +51,30 @@ class PlainEnv(gymnasium.Wrapper):
 
     def get_state(self) -> dict:
         raw = self.env.unwrapped
-        return {
+        state = {
             "episode_index": self.episode_index,
             "started": self._started,
             "elapsed": self._elapsed,
             "pending_seed": self._pending_seed,
             "np_random": copy.deepcopy(raw.np_random.bit_generator.state),
-            "state": np.array(raw.state, dtype=np.float64),
         }
+        captured = getattr(raw, "state", None)
+        if (
+            isinstance(captured, np.ndarray | list | tuple)
+            and np.asarray(captured).dtype.kind in "fiu"
+        ):
+            state["state"] = np.array(captured, dtype=np.float64)
+        else:  # resuming from this checkpoint is refused (set_state)
+            state["uncapturable"] = f"{type(raw).__name__} keeps its state outside a `state` array"
+        return state
 
     def set_state(self, state: dict) -> None:
+        if "state" not in state:
+            raise UsageError(
+                f"cannot resume this run exactly: its env's state was not captured "
+                f"({state.get('uncapturable', 'no state in the checkpoint')}); allowed: start a "
+                "new run (adarl resumes exactly the MuJoCo tasks and envs with a `state` array)"
+            )
         raw = self.env.unwrapped
         self.episode_index = int(state["episode_index"])
         self._started = bool(state["started"])
@@ -68,16 +85,17 @@ class PlainEnv(gymnasium.Wrapper):
 
 
 def make_plain(
-    task: str, dynamics="default", seed: int | None = 0, max_episode_steps: int = 1000, **overrides
+    task, dynamics="default", seed: int | None = 0, max_episode_steps: int = 1000, **overrides
 ) -> PlainEnv:
-    """`gym:<id>` as a task; its dynamics are Gymnasium's own and cannot be changed."""
+    """A Gymnasium env that is not a MuJoCo task (`task`: its id or `TaskSpec`) as a task; its
+    dynamics are Gymnasium's own and cannot be changed."""
+    from adarl.envs.tasks import get_task, make_raw_env
+
+    spec = get_task(task)
     if dynamics not in ("paper", "nominal", "default"):
-        raise UsageError(f"task {task!r} has fixed dynamics; got dynamics {dynamics!r}")
+        raise UsageError(f"task {spec.name!r} has fixed dynamics; got dynamics {dynamics!r}")
     if overrides:
-        raise UsageError(f"task {task!r} has no physical parameters; got {', '.join(overrides)}")
-    env_id = task[len(PREFIX) :]
-    try:
-        raw = gymnasium.make(env_id, disable_env_checker=True).unwrapped
-    except gymnasium.error.Error as exc:
-        raise UsageError(f"unknown Gymnasium env {env_id!r} in task {task!r}") from exc
-    return PlainEnv(raw, seed, max_episode_steps)
+        raise UsageError(
+            f"task {spec.name!r} has no physical parameters; got {', '.join(overrides)}"
+        )
+    return PlainEnv(make_raw_env(spec), seed, max_episode_steps)

@@ -14,10 +14,14 @@ default model as OMPO does (masses and inertias stay the default robot's); see a
 
 from __future__ import annotations
 
+import functools
+import importlib
+import json
+import re
 from dataclasses import dataclass, field, replace
 
 from adarl.envs.params import PARAMS, Sinusoid
-from adarl.errors import check_choice
+from adarl.errors import UsageError, check_choice
 
 #: Generic robustness parameters every task has, at their no-change values.
 GENERIC_DEFAULTS = {"mass_scale": 1.0, "friction_scale": 1.0, "damping_scale": 1.0}
@@ -54,6 +58,13 @@ class TaskSpec:
     #: Parameters a schedule may set but need not: left out of `params` (so of `info["dynamics"]`
     #: and the training logs) unless set; at their default they leave the model untouched.
     optional_params: dict[str, float] = field(default_factory=dict)
+    #: "paper" (the four tasks above), "mujoco" (any other env built on Gymnasium's `MujocoEnv`:
+    #: generic and addressed parameters) or "gym" (any other Gymnasium env: fixed dynamics)
+    kind: str = "paper"
+    env_kwargs: tuple[tuple[str, object], ...] = ()  # Gymnasium keywords (`xml_file`, ...)
+    env_module: str = ""  # the module imported first, which registers `gym_id`
+    xml_path: str = ""  # the model's XML (generic tasks; the paper's: adarl.envs.model)
+    max_episode_steps: int = 1000  # the registered time limit (the paper's four: 1000)
     intrinsic_rank: int = field(init=False)
 
     def __post_init__(self):
@@ -64,6 +75,11 @@ class TaskSpec:
     def all_params(self) -> dict[str, float]:
         """`params` and `optional_params`: every parameter name a schedule accepts, with its default."""
         return self.params | self.optional_params
+
+    @property
+    def paper(self) -> bool:
+        """One of the paper's four tasks?"""
+        return self.kind == "paper"
 
     @property
     def varied(self) -> tuple[str, ...]:
@@ -165,18 +181,222 @@ def list_tasks() -> list[str]:
     return list(TASKS)
 
 
-def get_task(name: str, version: str = "v5") -> TaskSpec:
-    """The `TaskSpec` of `name` on Gymnasium's `version` models (its `gym_id` and `obs_dim`); a
-    one-line `UsageError` lists the tasks or versions if either is unknown."""
+def get_task(
+    name: str | TaskSpec, version: str = "v5", *, env_kwargs=None, env_module: str = ""
+) -> TaskSpec:
+    """The `TaskSpec` of `name`: one of the paper's four on Gymnasium's `version` models (its
+    `gym_id` and `obs_dim`), or any registered Gymnasium id (`HalfCheetah-v5`, a user's own after
+    `env_module` registers it; `gym:ID` as well) made with `env_kwargs` (text `k=v,k=v` or JSON,
+    or a dict: Gymnasium's own keywords such as `xml_file`). Without `env_kwargs`, an id gets the
+    spec this process last made for it (a run's env and its schedules share it). Bad input: a
+    one-line `UsageError`. A `TaskSpec` is returned as it is."""
+    if isinstance(name, TaskSpec):
+        return name
     key = name.strip().lower() if isinstance(name, str) else name
-    if key not in TASKS:
+    if key in TASKS:
+        if env_kwargs or env_module:
+            raise UsageError(
+                f"env-kwargs/env-module apply to Gymnasium ids, not to task {name!r}; allowed: "
+                f"empty (the paper's tasks take their physics from --dynamics)"
+            )
+        check_choice("model version", version, VERSIONS)
+        spec = TASKS[key]
+        if version == spec.version:
+            return spec
+        return replace(
+            spec, gym_id=spec.gym_id.replace("-v5", "-v4"), obs_dim=spec.v4_obs_dim, version="v4"
+        )
+    if not isinstance(name, str) or not name.strip():
         check_choice("task", name, TASKS)
     check_choice("model version", version, VERSIONS)
-    spec = TASKS[key]
-    if version == spec.version:
-        return spec
-    return replace(
-        spec, gym_id=spec.gym_id.replace("-v5", "-v4"), obs_dim=spec.v4_obs_dim, version="v4"
+    if version != "v5":
+        raise UsageError(
+            f"model version {version!r} applies to {', '.join(TASKS)}; allowed for {name!r}: v5 "
+            "(the id itself names its version)"
+        )
+    name = name.strip()
+    if not env_module and not _GYM_ID.match(name):  # no Gymnasium import for a typo
+        raise UsageError(
+            f"unknown task {name!r}; allowed: {', '.join(TASKS)} or a registered Gymnasium id "
+            "such as HalfCheetah-v5 (adarl tasks lists them)"
+        )
+    if env_kwargs is None and not env_module and name in _LAST:
+        return _LAST[name]
+    spec = _gym_task(name, kwargs_text(env_kwargs), env_module or "")
+    _LAST[name] = spec
+    return spec
+
+
+#: A task outside the paper's four that `paper` (and `ompo`) name: adarl's generic schedule.
+GENERIC_SCHEDULE = {
+    "mass_scale": Sinusoid(1.0, 0.2, 0.5),
+    "friction_scale": Sinusoid(1.0, 0.2, 0.5),
+}
+GYM_PREFIX = "gym:"
+#: A Gymnasium id, `[gym:][namespace/]Name-vN` (an unversioned id needs its env-module).
+_GYM_ID = re.compile(r"^(gym:)?([\w.-]+/)?[\w.:-]+-v\d+$")
+_LAST: dict[str, TaskSpec] = {}
+
+
+def parse_env_kwargs(text) -> dict[str, object]:
+    """`k=v,k=v` (each value read as YAML: numbers, booleans, text) or a JSON object, or a dict,
+    -> a dict; a one-line `UsageError` otherwise."""
+    if isinstance(text, dict):
+        return dict(text)
+    text = (text or "").strip()
+    if not text:
+        return {}
+    if text.startswith("{"):
+        try:
+            value = json.loads(text)
+        except ValueError:
+            value = None
+        if not isinstance(value, dict):
+            raise UsageError(f"bad env-kwargs {text!r}; allowed: a JSON object or k=v,k=v")
+        return value
+    import yaml
+
+    out = {}
+    for item in text.split(","):
+        key, eq, value = (part.strip() for part in item.partition("="))
+        if not eq or not key.isidentifier():
+            raise UsageError(
+                f"malformed env-kwargs {text!r} (at {item.strip()!r}); allowed: k=v[,k=v...] "
+                "with k a keyword of the env's class, or a JSON object"
+            )
+        out[key] = yaml.safe_load(value) if value else ""
+    return out
+
+
+def kwargs_text(env_kwargs) -> str:
+    """Canonical text of `env_kwargs` (sorted JSON; "" for none): a run's config field."""
+    kwargs = parse_env_kwargs(env_kwargs)
+    return json.dumps(kwargs, sort_keys=True) if kwargs else ""
+
+
+def import_env_module(module: str) -> None:
+    """Import `module` (which registers a user's Gymnasium ids); a one-line `UsageError`."""
+    if not module:
+        return
+    try:
+        importlib.import_module(module)
+    except Exception as exc:  # any failure of a user's module is theirs: say which and why
+        raise UsageError(f"cannot import env-module {module!r}: {exc!r}".splitlines()[0]) from None
+
+
+def make_raw_env(spec: TaskSpec, render_mode: str | None = None):
+    """The unwrapped Gymnasium env of `spec` (no checker, order or time-limit wrappers)."""
+    import gymnasium
+    from gymnasium.envs.registration import load_env_creator
+
+    import_env_module(spec.env_module)
+    gym_spec = gymnasium.spec(spec.gym_id)
+    kwargs = dict(gym_spec.kwargs) | dict(spec.env_kwargs)
+    if render_mode is not None:
+        kwargs["render_mode"] = render_mode
+    creator = (
+        load_env_creator(gym_spec.entry_point)
+        if isinstance(gym_spec.entry_point, str)
+        else gym_spec.entry_point
+    )
+    try:
+        raw = creator(**kwargs)
+    except TypeError as exc:
+        raise UsageError(
+            f"env {spec.gym_id!r} does not take env-kwargs {dict(spec.env_kwargs)}: {exc}"
+        ) from None
+    return getattr(raw, "unwrapped", raw)
+
+
+@functools.lru_cache(maxsize=64)
+def _gym_task(name: str, env_kwargs: str, env_module: str) -> TaskSpec:
+    import gymnasium
+
+    import_env_module(env_module)
+    gym_id = name[len(GYM_PREFIX) :] if name.startswith(GYM_PREFIX) else name
+    try:
+        gym_spec = gymnasium.spec(gym_id)
+    except gymnasium.error.Error:
+        if gym_id.startswith("adarl-fn/"):
+            raise UsageError(
+                f"task {name!r} was an env_fn of adarl.train; allowed: resume it from Python, "
+                "adarl.train(env_fn=<the same callable>, resume=RUN_DIR)"
+            ) from None
+        raise UsageError(
+            f"unknown task {name!r}; allowed: {', '.join(TASKS)} or a registered Gymnasium id "
+            "such as HalfCheetah-v5 (--env-module PKG imports the package that registers yours; "
+            "adarl tasks lists them)"
+        ) from None
+    kwargs = tuple(sorted(json.loads(env_kwargs).items())) if env_kwargs else ()
+    probe = TaskSpec(
+        name, gym_id, 0, 0, {}, {}, kind="gym", env_kwargs=kwargs, env_module=env_module
+    )
+    raw = make_raw_env(probe)
+    try:
+        obs_dim, act_dim = check_spaces(name, raw.observation_space, raw.action_space)
+        from gymnasium.envs.mujoco.mujoco_env import MujocoEnv
+
+        limit = int(gym_spec.max_episode_steps or 1000)
+        if not isinstance(raw, MujocoEnv):
+            return replace(probe, obs_dim=obs_dim, act_dim=act_dim, max_episode_steps=limit)
+        from adarl.envs.elements import GENERIC_SCALES, model_gravity
+
+        xml = raw.fullpath
+        params = dict(GENERIC_SCALES) | {"gravity": model_gravity(xml)}
+        return replace(
+            probe,
+            obs_dim=obs_dim,
+            act_dim=act_dim,
+            params=params,
+            schedules={"paper": dict(GENERIC_SCHEDULE), "ompo": dict(GENERIC_SCHEDULE)},
+            optional_params={"wind": 0.0},
+            kind="mujoco",
+            xml_path=xml,
+            max_episode_steps=limit,
+        )
+    finally:
+        raw.close()
+
+
+def check_spaces(name: str, obs_space, act_space) -> tuple[int, int]:
+    """(obs_dim, act_dim) of a task adarl can train: a flat Box of observations and of actions
+    with finite bounds; a one-line `UsageError` otherwise."""
+    import gymnasium
+    import numpy as np
+
+    if not isinstance(act_space, gymnasium.spaces.Box) or len(act_space.shape) != 1:
+        raise UsageError(
+            f"task {name!r} has actions {act_space}; allowed: a 1-D Box (continuous actions; "
+            "adarl trains SAC-family agents)"
+        )
+    if not (np.all(np.isfinite(act_space.low)) and np.all(np.isfinite(act_space.high))):
+        raise UsageError(f"task {name!r} has unbounded actions {act_space}; allowed: finite bounds")
+    if not isinstance(obs_space, gymnasium.spaces.Box) or len(obs_space.shape) != 1:
+        raise UsageError(
+            f"task {name!r} has observations {obs_space}; allowed: a 1-D Box (no Dict, image or "
+            "discrete observations; flatten them with a Gymnasium wrapper in your env)"
+        )
+    return int(obs_space.shape[0]), int(act_space.shape[0])
+
+
+def registered_time_limit(task: str, env_module: str = "") -> int | None:
+    """The registered `max_episode_steps` of a task outside the paper's four (None for the
+    paper's, whose limit is 1000, or an id without one); errors as `get_task`."""
+    if str(task).strip().lower() in TASKS:
+        return None
+    spec = get_task(task, env_module=env_module) if env_module else get_task(task)
+    return spec.max_episode_steps
+
+
+def task_of(config) -> TaskSpec:
+    """The `TaskSpec` of a run's config (a config dataclass or its config.yaml dict)."""
+    if not isinstance(config, dict):
+        config = vars(config)
+    return get_task(
+        str(config.get("task", "hopper")),
+        str(config.get("model_version", VERSIONS[0])),
+        env_kwargs=config.get("env_kwargs", ""),
+        env_module=str(config.get("env_module", "")),
     )
 
 
