@@ -1,7 +1,7 @@
 """No module imports from a higher layer (docs/architecture.md, "Code map"): the maths never
 reaches for the training loop, the loops never for the evaluation or the CLI, and so on; and no
-two modules of one package import each other, directly or round a loop. Imports inside functions count too.
-Nothing is imported by a string, which would hide an edge from this test."""
+two modules of one package import each other, directly or round a loop. Imports inside
+functions count too. Nothing is imported by a string, which would hide an edge from this test."""
 
 import ast
 import re
