@@ -13,14 +13,29 @@ forms, both handled by `truncate`:
 * **masked** (fixed shape, for code that must keep one shape under `jit`/`vmap`): the dict also
   holds `mask`, a 0/1 vector of length d (the stored width) whose first `rank` entries are 1;
   the layer computes `((x @ w1) * mask) @ w2 + b`, so masked components contribute exactly nothing
-  and get exactly zero gradient (the mask itself is read through `stop_gradient`; leave it out of
-  weight decay). Shapes never change with the rank.
+  and get exactly zero gradient (the mask itself is read through `stop_gradient`). Shapes never
+  change with the rank. The mask lives in the parameters, so an optimiser that changes
+  parameters without a gradient, such as weight decay (`optax.adamw`), shrinks it (1 → 0.99…):
+  pass `mask=weight_decay_mask` to it (`optax.adamw(lr, weight_decay=…,
+  mask=lowrank.weight_decay_mask)`); `truncate` refuses a mask that is not 0/1.
+
+Inputs (issue 55): arguments that are Python values or concrete arrays are checked and a bad one
+is a `ValueError` naming it and what is allowed (a rank of 0 or past the width, β outside (0, 1]
+or NaN, a negative or NaN retain tolerance, a mask that is not a 0/1 prefix, a 2-D spectrum,
+`cut_every` < 1, a non-finite layer given to `truncate`). Under `jit`, shapes and static
+arguments are checked at trace time; traced values cannot raise, and behave as documented:
+a layer whose W1·diag(mask)·W2 is not finite is left exactly as it was (rank, factors and mask;
+its record's spectrum and error are NaN) and its SVD is never computed (jaxlib's SVD of a matrix
+holding `inf` does not return); a traced β outside (0, 1] or NaN cuts nothing; a traced NaN or
+negative tolerance keeps every old rank (`error <= tolerance` fails).
 
 The per-layer cut (`cut_layer`) is what adarl's own SAC runs (`adarl.algos.sac.truncate`).
 """
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -31,6 +46,92 @@ import optax
 from adarl import schedules
 
 RANK_RULES = ("cumulative", "ratio", "energy", "energy-squared")
+#: adarl's defaults (`adarl train`: --rank-rule energy --beta 0.98), also `truncate`'s and
+#: `cut_layer`'s
+DEFAULT_RULE, DEFAULT_BETA = "energy", 0.98
+
+# ============================================================================ input checks
+
+
+def _concrete(value) -> bool:
+    """A Python value or a concrete array (not a tracer under `jit`/`vmap`/`grad`)."""
+    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(value))
+
+
+def _scalar(value, name: str) -> float | None:
+    """`value` as a float when it is a concrete scalar, None when traced; a ValueError if it
+    is neither a number nor a scalar array."""
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    if isinstance(value, numbers.Real):
+        return float(value)
+    if not _concrete(value):
+        if jnp.ndim(value) != 0:
+            raise ValueError(f"{name} must be a scalar, got shape {jnp.shape(value)}")
+        return None
+    try:
+        array = jnp.asarray(value)
+    except TypeError:
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if array.ndim != 0 or not jnp.issubdtype(array.dtype, jnp.number):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    return float(array)
+
+
+def check_beta(beta) -> bool:
+    """A ValueError unless a concrete `beta` is a number in (0, 1]; False when it is traced
+    (unchecked: `cut_layer` then cuts nothing for a β outside (0, 1])."""
+    value = _scalar(beta, "beta")
+    if value is None:
+        return False
+    if not (0.0 < value <= 1.0):  # NaN fails too
+        raise ValueError(f"beta must be a number in (0, 1], got {value!r}")
+    return True
+
+
+def check_tolerance(tolerance) -> None:
+    """A ValueError unless `tolerance` is None (the retain clause off) or a concrete number
+    ≥ 0 and finite; a traced one is unchecked (a NaN or negative one keeps every old rank)."""
+    if tolerance is None:
+        return
+    value = _scalar(tolerance, "retain_tolerance")
+    if value is not None and not (math.isfinite(value) and value >= 0.0):
+        raise ValueError(
+            f"retain_tolerance must be None (off) or a finite number >= 0, got {value!r}"
+        )
+
+
+def check_rule(rule) -> None:
+    if rule not in RANK_RULES:
+        raise ValueError(f"unknown rank rule {rule!r}; allowed: {', '.join(RANK_RULES)}")
+
+
+def _count(value, name: str, least: int) -> int:
+    """`value` as an int ≥ `least` (a Python or NumPy integer, not a bool); else a ValueError."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+        raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+    return int(value)
+
+
+def check_mask(mask, where: str = "mask") -> None:
+    """A ValueError unless a concrete `mask` (one per layer of a stack on its last axis) is
+    0/1 with its ones first, as `rank_mask` builds it; a traced one is unchecked (read as its
+    sum). A mask that weight decay shrank is the usual cause (see `weight_decay_mask`)."""
+    if not _concrete(mask):
+        return
+    m = jnp.asarray(mask)
+    if m.ndim < 1:
+        raise ValueError(f"{where} must be a vector of 0/1 entries, got shape {m.shape}")
+    expected = rank_mask(m.sum(axis=-1, keepdims=True), m.shape[-1], m.dtype)
+    wrong = m != expected
+    if bool(jnp.any(wrong)):
+        example = float(m[wrong][0])
+        raise ValueError(
+            f"{where} is not a 0/1 mask with its ones first (it holds {example!r} where "
+            "rank_mask(rank, width) would not); did weight decay shrink it? pass "
+            "mask=lowrank.weight_decay_mask to the optimiser"
+        )
+
 
 # ============================================================================ rank rules
 
@@ -71,16 +172,22 @@ def select_rank_energy(sigma: jnp.ndarray, beta: float) -> jnp.ndarray:
 
 def select_rank(sigma: jnp.ndarray, beta: float, rule: str = "cumulative") -> jnp.ndarray:
     """r̂ from a descending spectrum by the named rule: `cumulative` (Eq. 5), `ratio` (Eq. 7),
-    `energy` (on σ_i) or `energy-squared` (on σ_i², the form of Trained Rank Pruning)."""
+    `energy` (on σ_i) or `energy-squared` (on σ_i², the form of Trained Rank Pruning). `sigma`
+    must be 1-D (vmap for several) and a concrete `beta` in (0, 1] (`check_beta`)."""
+    check_rule(rule)
+    if jnp.ndim(sigma) != 1:
+        raise ValueError(
+            f"sigma must be a 1-D spectrum, got shape {jnp.shape(sigma)} (vmap select_rank over "
+            "a stack of spectra)"
+        )
+    check_beta(beta)
     if rule == "cumulative":
         return select_rank_cumulative(sigma, beta)
     if rule == "ratio":
         return select_rank_ratio(sigma, beta)
     if rule == "energy":
         return select_rank_energy(sigma, beta)
-    if rule == "energy-squared":
-        return select_rank_energy(sigma**2, beta)
-    raise ValueError(f"unknown rank rule {rule!r}; allowed: {', '.join(RANK_RULES)}")
+    return select_rank_energy(sigma**2, beta)  # energy-squared
 
 
 def next_rank(old_rank: jnp.ndarray, proposed: jnp.ndarray) -> jnp.ndarray:
@@ -114,16 +221,25 @@ def init_factorised(
     """A factorised layer of rank `rank` as PyTorch builds the bottleneck the paper trains:
     nn.Linear(n_in, r, bias=False) then nn.Linear(r, n_out), i.e. W1 ~ U(±1/√n_in) and W2, b ~
     U(±1/√r). With `width` (≥ rank) it is stored masked, `width` wide, components past `rank`
-    exactly zero; else compact (r wide, no mask)."""
+    exactly zero; else compact (r wide, no mask). The masked layer is the compact one of the
+    same key padded with zeros (the same function). `n_in`, `n_out` and `rank` are integers
+    ≥ 1, `width` None or an integer ≥ `rank`; else a ValueError."""
+    n_in, n_out = _count(n_in, "n_in", 1), _count(n_out, "n_out", 1)
+    rank = _count(rank, "rank", 1)
+    if width is not None and _count(width, "width", 1) < rank:
+        raise ValueError(f"rank {rank} exceeds width {width}; allowed: 1 <= rank <= width")
     k1, k2, k3 = jax.random.split(key, 3)
-    d = rank if width is None else width
-    w1 = jax.random.uniform(k1, (n_in, d), dtype, -1.0, 1.0) / jnp.sqrt(n_in).astype(dtype)
+    w1 = jax.random.uniform(k1, (n_in, rank), dtype, -1.0, 1.0) / jnp.sqrt(n_in).astype(dtype)
     bound = 1.0 / jnp.sqrt(rank).astype(dtype)
-    w2 = jax.random.uniform(k2, (d, n_out), dtype, -1.0, 1.0) * bound
+    w2 = jax.random.uniform(k2, (rank, n_out), dtype, -1.0, 1.0) * bound
     layer = {"w1": w1, "w2": w2}
     if width is not None:
-        mask = rank_mask(rank, d, dtype)
-        layer = {"w1": w1 * mask[None, :], "w2": w2 * mask[:, None], "mask": mask}
+        pad = int(width) - rank
+        layer = {
+            "w1": jnp.pad(w1, ((0, 0), (0, pad))),
+            "w2": jnp.pad(w2, ((0, pad), (0, 0))),
+            "mask": rank_mask(rank, int(width), dtype),
+        }
     if bias:
         layer["b"] = jax.random.uniform(k3, (n_out,), dtype, -1.0, 1.0) * bound
     return layer
@@ -151,9 +267,11 @@ def is_factorised(node: Any) -> bool:
 
 
 def layer_rank(layer: dict) -> jax.Array:
-    """The rank of a factorised layer (one per layer of a stack): its mask's sum, or its width
-    when compact."""
+    """The rank of a factorised layer (one per layer of a stack): its mask's sum, or W1's width
+    when compact. A concrete mask that is not 0/1 with its ones first is a ValueError
+    (`check_mask`)."""
     if "mask" in layer:
+        check_mask(layer["mask"])
         return layer["mask"].sum(axis=-1).astype(jnp.int32)
     return jnp.full(layer["w1"].shape[:-2], layer["w1"].shape[-1], jnp.int32)
 
@@ -194,9 +312,15 @@ def _svd_vmap(axis_size, in_batched, matrix):
 def spectrum(w1, w2, mask):
     """SVD W1·diag(mask)·W2 = U Σ Vᵀ, cut (or zero-padded) to the bottleneck's width d: a
     bottleneck of width d has rank ≤ d, so only its first d singular values can be non-zero.
-    Returns `(u, s, vt)` with `s` descending."""
+    Returns `(u, s, vt)` with `s` descending. A product holding `inf` or NaN is never
+    decomposed (jaxlib's SVD of a matrix holding `inf` does not return): the SVD runs on zeros
+    and `s` is NaN (`cut_layer` then leaves the layer as it was). A finite product is
+    decomposed exactly as it is."""
     width = mask.shape[0]
-    u, s, vt = svd(bottleneck_product(w1, w2, mask))
+    product = bottleneck_product(w1, w2, mask)
+    finite = jnp.all(jnp.isfinite(product))
+    u, s, vt = svd(jnp.where(finite, product, jnp.zeros_like(product)))
+    s = jnp.where(finite, s, jnp.nan)
     k = s.shape[0]
     if k >= width:
         return u[:, :width], s[:width], vt[:width, :]
@@ -257,8 +381,8 @@ def cut_layer(
     w2: jax.Array,
     mask: jax.Array,
     *,
-    rule: str = "cumulative",
-    beta: float = 0.9,
+    rule: str = DEFAULT_RULE,
+    beta: float = DEFAULT_BETA,
     retain_tolerance: float | None = None,
     error_fn: Callable[[jax.Array, jax.Array, jax.Array], jax.Array] | None = None,
     apply_cuts: bool = True,
@@ -271,11 +395,32 @@ def cut_layer(
     `apply_cuts=False` is AdaRL's control: the same SVD basis, the old rank kept. `batched`:
     the arrays stack several layers on axis 0 (e.g. twin critics), each cut on its own, and
     `error_fn` returns one error per layer. Returns `(w1, w2, mask, record)`; jit- and
-    vmap-safe."""
+    vmap-safe. Defaults are adarl's (`energy`, β 0.98).
+
+    Inputs: shapes, `rule`, and a concrete `beta` (in (0, 1]) and `retain_tolerance` (None or
+    ≥ 0) are checked (ValueError). Concrete arrays whose product W1·diag(mask)·W2 is not finite
+    are a ValueError, as is a concrete mask that is not 0/1 with its ones first. Traced (under
+    `jit`): a layer whose product is not finite is returned exactly as it was (record: old
+    rank throughout, NaN spectrum and error) and is never decomposed; a traced β outside
+    (0, 1] or NaN proposes the full width (nothing is cut)."""
+    check_rule(rule)
+    _check_shapes(w1, w2, mask, batched)
+    beta_checked = check_beta(beta)
+    check_tolerance(retain_tolerance)
+    check_mask(mask)
     each = jax.vmap if batched else (lambda f: f)
+    finite = each(product_finite)(w1, w2, mask)
+    if _concrete((w1, w2, mask)) and not bool(jnp.all(finite)):
+        raise ValueError(
+            "the layer's W1·diag(mask)·W2 holds inf or NaN (diverged weights?); allowed: finite "
+            "factors (the SVD of a non-finite matrix is undefined)"
+        )
     old = mask.sum(axis=-1).astype(jnp.int32)
     u, s, vt = each(spectrum)(w1, w2, mask)
     proposed = each(lambda x: select_rank(x, beta, rule))(s)
+    if not beta_checked:  # traced: an invalid β proposes the full width, so nothing is cut
+        valid = jnp.logical_and(beta > 0, beta <= 1)
+        proposed = jnp.where(valid, proposed, mask.shape[-1]).astype(jnp.int32)
     candidate = next_rank(old, proposed)
     reparam = each(lambda u_, s_, vt_, r_: reparameterise(u_, s_, vt_, r_, dtype=w1.dtype))
     new_w1, new_w2, new_mask = reparam(u, s, vt, candidate)
@@ -288,9 +433,41 @@ def cut_layer(
         new = old
     if retain_tolerance is not None or not apply_cuts:  # else the candidate's, as before
         new_w1, new_w2, new_mask = reparam(u, s, vt, new)
+    # a non-finite layer (only traced ones get here) comes back as it was; finite ones exactly
+    # as computed (`where` selects, it does not compute)
+    new_w1 = jnp.where(finite[..., None, None], new_w1, w1)
+    new_w2 = jnp.where(finite[..., None, None], new_w2, w2)
+    new_mask = jnp.where(finite[..., None], new_mask, mask)
+    proposed, candidate = jnp.where(finite, proposed, old), jnp.where(finite, candidate, old)
+    error = jnp.where(finite, error, jnp.nan)
     applied = new_mask.sum(axis=-1).astype(jnp.int32)
     record = LayerRecord(old, proposed, candidate, applied, error, s)
     return new_w1, new_w2, new_mask, record
+
+
+def product_finite(w1, w2, mask) -> jax.Array:
+    """True when every entry of W1·diag(mask)·W2 is finite (the SVD's input; the factors can be
+    finite and their product overflow)."""
+    return jnp.all(jnp.isfinite(bottleneck_product(w1, w2, mask)))
+
+
+def _check_shapes(w1, w2, mask, batched: bool) -> None:
+    """A ValueError unless w1 (…, n_in, d), w2 (…, d, n_out) and mask (…, d) fit, with one
+    leading stack axis when `batched` and none otherwise (static: checked under jit too)."""
+    nd = 3 if batched else 2
+    shapes = (jnp.shape(w1), jnp.shape(w2), jnp.shape(mask))
+    if (
+        len(shapes[0]) != nd
+        or len(shapes[1]) != nd
+        or len(shapes[2]) != nd - 1
+        or not (shapes[0][-1] == shapes[1][-2] == shapes[2][-1])
+        or not (shapes[0][:-2] == shapes[1][:-2] == shapes[2][:-1])
+    ):
+        stack = "a stack on axis 0 of " if batched else ""
+        raise ValueError(
+            f"w1, w2, mask have shapes {shapes[0]}, {shapes[1]}, {shapes[2]}; allowed: {stack}"
+            "(n_in, d), (d, n_out), (d,)"
+        )
 
 
 class Truncation(NamedTuple):
@@ -350,8 +527,8 @@ def truncate(
     params: Any,
     opt_state: Any = None,
     *,
-    rule: str = "cumulative",
-    beta: float = 0.9,
+    rule: str = DEFAULT_RULE,
+    beta: float = DEFAULT_BETA,
     retain_tolerance: float | None = None,
     output_fn: Callable[[Any], jax.Array] | None = None,
     optimizer: optax.GradientTransformation | None = None,
@@ -368,9 +545,29 @@ def truncate(
     W2 = √Σ_r V_rᵀ. Masked layers keep their shapes (jit/vmap-safe); compact layers are sliced
     to the applied rank (concrete values: call it outside `jit`). The optimiser state is fitted
     by `fit_opt_state` (`reset=True`: AdaRL's reset). `apply_cuts=False` is the control: the
-    same basis and reset, the old ranks kept.
+    same basis and reset, the old ranks kept. Defaults are adarl's: `energy`, β 0.98.
+
+    Inputs are checked as `cut_layer` checks them; a concrete layer whose W1·diag(mask)·W2 is
+    not finite is a ValueError naming its path (a traced one is left as it was).
     """
+    check_rule(rule)
+    check_beta(beta)
+    check_tolerance(retain_tolerance)
     layers = factorised_layers(params)
+    for path, layer in layers.items():
+        if "mask" in layer:
+            check_mask(layer["mask"], f"layer {path}'s mask")
+            mask = layer["mask"]
+        else:
+            mask = jnp.ones(layer["w1"].shape[:-2] + layer["w1"].shape[-1:], layer["w1"].dtype)
+        _check_shapes(layer["w1"], layer["w2"], mask, layer["w1"].ndim == 3)
+        if _concrete((layer["w1"], layer["w2"], mask)):
+            product = (layer["w1"] * mask[..., None, :]) @ layer["w2"]
+            if not bool(jnp.all(jnp.isfinite(product))):
+                raise ValueError(
+                    f"layer {path}'s W1·diag(mask)·W2 holds inf or NaN (diverged weights?); "
+                    "allowed: finite factors (the SVD of a non-finite matrix is undefined)"
+                )
     reference = None if output_fn is None else output_fn(params)
     new_layers, records = {}, {}
     for path, layer in layers.items():
@@ -410,14 +607,34 @@ def truncate(
 
 def to_compact(params: Any) -> Any:
     """Masked factorised layers cut to their rank (mask dropped): the same function, fewer
-    parameters (e.g. to export the compressed network). Concrete values only."""
+    parameters (e.g. to export the compressed network); a stack keeps its largest rank (the
+    components past each layer's own are zero). Concrete values only; a mask that is not 0/1
+    with its ones first is a ValueError."""
     new = {}
     for path, layer in factorised_layers(params).items():
         if "mask" in layer:
+            check_mask(layer["mask"], f"layer {path}'s mask")
             r = int(layer["mask"].sum(axis=-1).max())
             rest = {k: v for k, v in layer.items() if k != "mask"}
             new[path] = dict(rest, w1=layer["w1"][..., :r], w2=layer["w2"][..., :r, :])
     return _replace_layers(params, new)
+
+
+def weight_decay_mask(params: Any) -> Any:
+    """A pytree of bools shaped like `params`: False for the `mask` of every masked factorised
+    layer, True elsewhere. Give it to an optimiser's weight decay (`optax.adamw(lr,
+    weight_decay=wd, mask=lowrank.weight_decay_mask)`): decay changes every parameter it is
+    applied to, gradient or not, and would shrink the masks (1 → 1 − lr·wd each step), after
+    which they are no longer ranks."""
+
+    def leaves(node):
+        if is_factorised(node):
+            return {
+                k: jax.tree_util.tree_map(lambda _, k=k: k != "mask", v) for k, v in node.items()
+            }
+        return jax.tree_util.tree_map(lambda _: True, node)
+
+    return jax.tree_util.tree_map(leaves, params, is_leaf=is_factorised)
 
 
 # ============================================================================ learning rate
@@ -454,7 +671,11 @@ def envelope_schedule(
     after every `cut_every` steps: the warm-up restarts at t_reset = ⌊t / d_t⌋·d_t (from the
     first cut on, or from the start with `warm_up_first`). Equal to adarl's learning rate when
     d_t is a multiple of its `update_every`. Feed it the global step (the optimiser's count
-    restarts at a reset), e.g. `updates * -schedule(step)`."""
+    restarts at a reset), e.g. `updates * -schedule(step)`. `total_steps` and `cut_every` are
+    integers ≥ 1, `warmup_steps` ≥ 0, `base_lr` finite ≥ 0 and `min_ratio` in [0, 1]; else a
+    ValueError."""
+    _check_schedule(base_lr, warmup_steps, cut_every, min_ratio)
+    _count(total_steps, "total_steps", 1)
 
     def schedule(step):
         start = (jnp.asarray(step, jnp.int32) // cut_every) * cut_every
@@ -471,7 +692,10 @@ def restart_schedule(
 ) -> optax.Schedule:
     """`restart_learning_rate` as an optax schedule of the steps since the last reset: a full
     warm-up + cosine over every iteration of d_t = `cut_every` steps. Since `truncate` resets
-    the optimiser's count, it also works inside a chain (`optax.scale_by_schedule`)."""
+    the optimiser's count, it also works inside a chain (`optax.scale_by_schedule`).
+    `cut_every` is an integer ≥ 1, `warmup_steps` ≥ 0, `base_lr` finite ≥ 0 and `min_ratio`
+    in [0, 1]; else a ValueError."""
+    _check_schedule(base_lr, warmup_steps, cut_every, min_ratio)
 
     def schedule(count):
         return restart_learning_rate(count, base_lr, warmup_steps, cut_every, min_ratio)
@@ -479,12 +703,28 @@ def restart_schedule(
     return schedule
 
 
+def _check_schedule(base_lr, warmup_steps, cut_every, min_ratio) -> None:
+    _count(cut_every, "cut_every", 1)
+    _count(warmup_steps, "warmup_steps", 0)
+    lr = _scalar(base_lr, "base_lr")
+    if lr is not None and not (math.isfinite(lr) and lr >= 0):
+        raise ValueError(f"base_lr must be a finite number >= 0, got {lr!r}")
+    ratio = _scalar(min_ratio, "min_ratio")
+    if ratio is not None and not (0.0 <= ratio <= 1.0):
+        raise ValueError(f"min_ratio must be a number in [0, 1], got {ratio!r}")
+
+
 __all__ = [
+    "DEFAULT_BETA",
+    "DEFAULT_RULE",
     "RANK_RULES",
     "LayerRecord",
     "Truncation",
     "apply_factorised",
     "bottleneck_product",
+    "check_beta",
+    "check_mask",
+    "check_tolerance",
     "cut_layer",
     "envelope_learning_rate",
     "envelope_schedule",
@@ -494,6 +734,7 @@ __all__ = [
     "is_factorised",
     "layer_rank",
     "next_rank",
+    "product_finite",
     "rank_mask",
     "relative_error",
     "reparameterise",
@@ -508,5 +749,6 @@ __all__ = [
     "svd",
     "to_compact",
     "truncate",
+    "weight_decay_mask",
     "weight_error",
 ]
