@@ -101,13 +101,38 @@ def _band(ax, x, values, label, colour=None, **line):
     return handle
 
 
+class Log2Ticks(matplotlib.ticker.Locator):
+    """Integer ticks on a log-2 axis, as many per octave as the view leaves room for: 2^k·{1,
+    1.25, 1.5, 1.75} over up to 2.5 octaves (…, 16, 20, 24, 28, 32, …), 2^k·{1, 1.5} up to 5,
+    else the powers of two; a panel's ranks can be read to a tick or two (the rank figure also
+    writes each level on its line, `rank_trajectories`)."""
+
+    def __call__(self):
+        low, high = self.axis.get_view_interval()
+        return self.tick_values(low, high)
+
+    def tick_values(self, vmin, vmax):
+        low, high = sorted((max(float(vmin), 1e-9), max(float(vmax), 1e-9)))
+        octaves = np.log2(high / low)
+        steps = (1, 1.25, 1.5, 1.75) if octaves <= 2.5 else (1, 1.5) if octaves <= 5 else (1,)
+        ticks = {2**k * f for k in range(-4, 20) for f in steps}
+        ticks = sorted(t for t in ticks if low <= t <= high and (t >= 1) == (t == round(t)))
+        return ticks or [2.0 ** round(np.log2(np.sqrt(low * high)))]
+
+
 def _log2_axis(ax, which: str) -> None:
-    """Log-2 scale on axis `which` ("x"/"y") with plain labels at powers of two (ranks)."""
+    """Log-2 scale on axis `which` ("x"/"y") with plain labels at `Log2Ticks` (ranks)."""
     getattr(ax, f"set_{which}scale")("log", base=2)
     axis = getattr(ax, f"{which}axis")
-    axis.set_major_locator(matplotlib.ticker.FixedLocator([2**k for k in range(12)]))
+    axis.set_major_locator(Log2Ticks())
     axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_locator(matplotlib.ticker.NullLocator())
+
+
+def _from_zero(ax) -> None:
+    """The y-axis reaches 0 (a return axis that starts at 313 makes 2% look like a collapse)."""
+    low, high = ax.get_ylim()
+    ax.set_ylim(min(low, 0.0), max(high, 0.0))
 
 
 def steps_label(steps: float) -> str:
@@ -190,16 +215,66 @@ def rank_trajectories(
     truncations: Sequence[int] = (),
 ) -> Figure:
     """Rank of each bottleneck (one panel per layer) over training, one line per seed, with the
-    intrinsic rank 2·d_a+1 as a horizontal line. `history`: `step, seed, layer, rank`."""
+    intrinsic rank 2·d_a+1 as a horizontal line, and each level written on its line where it
+    begins (`_level_labels`: 35, 30, 27, 26 read off the line, not between log-2 ticks).
+    `history`: `step, seed, layer, rank`."""
     layers = sorted(history["layer"].unique())
     fig, axes = _grid(len(layers), max_cols=3, sharey=True)
+    levels = []
     for ax, layer in zip(axes, layers):
         data = history[history["layer"] == layer]
+        starts = []
         for seed, rows in data.groupby("seed"):
             rows = rows.sort_values("step")
-            ax.plot(rows["step"], rows["rank"], drawstyle="steps-post", label=f"seed {seed}")
+            steps, ranks = rows["step"].to_numpy(float), rows["rank"].to_numpy(float)
+            (line,) = ax.plot(steps, ranks, drawstyle="steps-post", label=f"seed {seed}")
+            changed = np.r_[True, ranks[1:] != ranks[:-1]] & np.isfinite(ranks)
+            starts += [(x, r, line.get_color()) for x, r in zip(steps[changed], ranks[changed])]
+        levels.append(starts)
         _rank_axes(ax, layer, title, intrinsic_rank, truncations, legend=ax is axes[0])
+    low, high = axes[0].get_ylim()  # shared: room above the top level for its label
+    axes[0].set_ylim(low, high * 2 ** (1.5 * _label_octaves(axes[0])))
+    for ax, starts in zip(axes, levels):
+        _level_labels(ax, starts)
     return fig
+
+
+def _label_octaves(ax) -> float:
+    """How many octaves of `ax`'s log-2 y-axis a 6 pt label spans (7 pt with its spacing)."""
+    low, high = ax.get_ylim()
+    height_in = ax.get_position().height * ax.figure.get_figheight()
+    return float(np.log2(high / low) * (7 / 72) / max(height_in, 1e-3))
+
+
+def _level_labels(ax, starts: Sequence[tuple[float, float, tuple]]) -> None:
+    """Write each rank level (x where it begins, rank, line colour) just above its line. Levels
+    that begin at one step and lie closer than a label's height on the log axis share one label
+    in black: "26, 27", or the range "15–18" for three or more."""
+    gap = _label_octaves(ax)
+    by_step: dict[float, list[tuple[float, tuple]]] = {}
+    for x, rank, colour in starts:
+        by_step.setdefault(x, []).append((rank, colour))
+    for x, found in by_step.items():
+        found.sort(key=lambda item: -item[0])
+        group = [found[0]]
+        for item in [*found[1:], None]:
+            if item is not None and np.log2(group[-1][0] / item[0]) < gap:
+                group.append(item)
+                continue
+            values = sorted({int(r) if r == int(r) else r for r, _ in group})
+            colours = {c for _, c in group}
+            text = ", ".join(f"{v:g}" for v in values)
+            ax.annotate(
+                text if len(values) <= 2 else f"{values[0]:g}–{values[-1]:g}",
+                (x, max(values)),
+                xytext=(1.5, 1),
+                textcoords="offset points",
+                fontsize=6,
+                va="bottom",
+                ha="left",
+                color=colours.pop() if len(colours) == 1 else "black",
+            )
+            group = [item]
 
 
 @styled
@@ -209,24 +284,36 @@ def robustness_curve(
     title: str = "",
     nominal: float | None = None,
     colours: Mapping[str, tuple] | None = None,
+    base: str = "",
 ) -> Figure:
-    """Return against one swept parameter, one line per method with its band over seeds.
+    """Return against one swept parameter, one line per method with its band over seeds, on a
+    y-axis from 0 (`_from_zero`); `base`, the point the sweep moves one parameter away from (its
+    dynamics and the other parameters' values), is written under the axes.
 
     `data`: `method, seed, value, return` (return: a seed's mean over episodes at that value).
     """
     colours = colours or method_colours(data["method"].unique())
-    fig = Figure(figsize=(COLUMN_WIDTH, 2.6), layout="constrained")
+    fig = Figure(figsize=(COLUMN_WIDTH, 2.6 + (0.3 if base else 0.0)), layout="constrained")
     ax = fig.add_subplot()
     for method in sort_methods(data["method"].unique()):
         x, values = _by_seed(data[data["method"] == method], "value", "return")
         _band(ax, x, values, method, colours.get(method), marker="o", markersize=3)
     if nominal is not None:
         ax.axvline(nominal, color="grey", linestyle=":", linewidth=1.0, label="nominal")
+    _from_zero(ax)
     ax.set_xlabel(parameter)
     ax.set_ylabel("return")
     ax.set_title(title or f"robustness to {parameter}")
     ax.legend(loc="best")
+    if base:
+        fig.supxlabel(_wrapped(f"base: {base}", 70), fontsize=6.5, ha="center")
     return fig
+
+
+def _wrapped(text: str, width: int) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width, break_on_hyphens=False))
 
 
 @styled
@@ -281,6 +368,7 @@ def robustness_size_curve(
         ax.set_xlabel(xlabel)
         ax.set_title(label)
         ax.set_xlim(left=0)
+    _from_zero(axes[0])  # the panels share their y-axis
     axes[0].set_ylabel("return")
     axes[1].legend(loc="best")
     if title:
@@ -374,18 +462,45 @@ def rank_rule_ablation(
     return fig
 
 
+def network_spectrum(
+    spectrum: Spectrum, layer: str, ranks: pd.DataFrame | None = None
+) -> np.ndarray:
+    """The singular values σ_1 ≥ σ_2 ≥ … of `layer`'s networks at `spectrum`'s truncation, mean
+    over the seeds whose network has an i-th component.
+
+    A network of rank r before the cut has r components; its stored spectrum is as wide as the
+    widest network stored with it (the other seeds of its lane, and q1 and q2, which are stored
+    stacked), the values past r being zeros (padding) or the SVD's noise on exactly-zero
+    components (3e-05 at a σ_1 of a few). With `ranks` (truncations.csv's `step, seed, layer,
+    old_rank`), seed s keeps σ_1…σ_{r_s}; without it, only the zeros are dropped."""
+    values = np.sort(np.asarray(spectrum.layers[layer], float), axis=-1)[:, ::-1]
+    values = np.where(values > 0, values, np.nan)
+    if ranks is not None and not ranks.empty and "old_rank" in ranks:
+        rows = ranks[(ranks["step"] == spectrum.step) & (ranks["layer"] == layer)]
+        by_seed = dict(zip(rows["seed"].astype(int), rows["old_rank"].astype(float)))
+        kept = np.array([by_seed.get(int(s), np.inf) for s in spectrum.seeds], float)
+        if len(kept) == len(values):
+            values = np.where(np.arange(values.shape[1])[None, :] < kept[:, None], values, np.nan)
+    counts = np.isfinite(values).sum(axis=0)
+    sigma = np.where(counts > 0, np.nansum(values, axis=0) / np.maximum(counts, 1), np.nan)
+    present = np.flatnonzero(counts > 0)
+    return sigma[: present[-1] + 1] if len(present) else sigma[:0]
+
+
 @styled
-def singular_value_spectra(spectra: Sequence[Spectrum], title: str = "") -> Figure:
+def singular_value_spectra(
+    spectra: Sequence[Spectrum], title: str = "", ranks: pd.DataFrame | None = None
+) -> Figure:
     """Singular values of each bottleneck (one panel per layer) at each truncation (one line
-    per truncation step, light to dark), averaged over seeds, on a log scale."""
+    per truncation step, light to dark), on a log scale: each network's own components only
+    (`network_spectrum`; `ranks`: truncations.csv), mean over seeds."""
     layers = sorted(set().union(*(s.layers for s in spectra)))
     fig, axes = _grid(len(layers), max_cols=3)
     cmap = matplotlib.colormaps["viridis"]
     for ax, layer in zip(axes, layers):
         steps = [s for s in spectra if layer in s.layers]
         for i, spectrum in enumerate(steps):
-            sigma = np.sort(spectrum.layers[layer], axis=-1)[:, ::-1].mean(axis=0)
-            sigma = np.where(sigma > 0, sigma, np.nan)
+            sigma = network_spectrum(spectrum, layer, ranks)
             colour = cmap(i / max(len(steps) - 1, 1))
             ax.plot(
                 np.arange(1, len(sigma) + 1), sigma, color=colour, label=f"step {spectrum.step}"

@@ -14,6 +14,7 @@ from adarl.report import common, figures, tables
 from adarl.report.common import REFERENCE, Section, csv_text, slug, write_file
 from adarl.results import collect
 from adarl.results.runs import Run, config_value, sort_tasks
+from adarl.runs.layout import TRUNCATIONS_CSV
 
 
 def intrinsic_rank(run: Run) -> int | None:
@@ -235,10 +236,12 @@ def spectra_section(runs: list[Run], folder: Path) -> Section:
     for r in runs:
         found = collect.spectra(r)
         if found:
-            fig = figures.singular_value_spectra(found, f"{r.task} {r.label}")
+            cuts = collect.read_table(r.path / TRUNCATIONS_CSV)  # each network's rank before
+            fig = figures.singular_value_spectra(found, f"{r.task} {r.label}", cuts)
             files += common.save_figure(folder, fig, f"spectra_{r.task}_{r.label}")
     text = (
-        "Singular values of each bottleneck at each truncation (mean over seeds).\n"
+        "Singular values of each bottleneck at each truncation, up to its rank before the cut "
+        "(mean over seeds).\n"
         if files
         else "No spectra recorded.\n"
     )

@@ -46,9 +46,22 @@ def heatmap_grid(table: pd.DataFrame, x: str, y: str) -> tuple[np.ndarray, np.nd
     return cells.columns.to_numpy(float), cells.index.to_numpy(float), cells.to_numpy(float)
 
 
+def base_point(table: pd.DataFrame, parameter: str, dynamics: str | None) -> str:
+    """The point a one-parameter sweep moves `parameter` away from: its base dynamics and the
+    value of every other parameter the episodes recorded (`p_*`; "varies" where not one value):
+    `nominal dynamics; foot_length 0.39, thigh_length 0.45`."""
+    others = []
+    for column in sorted(c for c in table.columns if c.startswith("p_") and c != f"p_{parameter}"):
+        values = table[column].dropna().unique()
+        value = f"{float(values[0]):.4g}" if len(values) == 1 else "varies"
+        others.append(f"{column[2:]} {value}")
+    return f"{dynamics or 'nominal'} dynamics" + (f"; {', '.join(others)}" if others else "")
+
+
 def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str]) -> Section:
     groups: dict[tuple[str, str, str], list[pd.DataFrame]] = {}
     held: dict[tuple[str, str, str], str] = {}
+    bases: dict[tuple[str, str, str], str] = {}
     nominal: dict[tuple[str, str], float] = {}
     for r in runs:
         for ev in collect.evaluations(r):
@@ -80,6 +93,9 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
             key = (r.task, ev.name, param)
             groups.setdefault(key, []).append(per_seed.assign(method=r.label))
             held[key] = ", ".join(f"{k}={v:g}" for k, v in (ev.meta.get("hold") or {}).items())
+            base = base_point(ev.table, param, ev.meta.get("dynamics"))
+            if bases.setdefault(key, base) != base:
+                bases[key] = "differs between the runs drawn"
     if not groups:
         return Section(
             "Robustness",
@@ -91,12 +107,17 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
         task, name, param = key
         data = pd.concat(groups[key], ignore_index=True)
         title = f"{task}: {param}" + (f" (held: {held[key]})" if held[key] else "")
-        fig = figures.robustness_curve(data, param, title, nominal.get((task, param)), colours)
+        fig = figures.robustness_curve(
+            data, param, title, nominal.get((task, param)), colours, bases[key]
+        )
         files += common.save_figure(folder, fig, f"robustness_{task}_{name}")
         lines.append(f"- {title}: {', '.join(sort_methods(data['method'].unique()))}")
     text = (
         "Return against each swept parameter (mean over seeds of each seed's mean over episodes, "
-        "95% t band); grey dotted line: the nominal value.\n\n" + "\n".join(lines) + "\n"
+        "95% t band; the y-axis starts at 0); grey dotted line: the nominal value; under each "
+        "figure, its base point (the dynamics and the values of the parameters not swept).\n\n"
+        + "\n".join(lines)
+        + "\n"
     )
     return Section("Robustness", text, files)
 
