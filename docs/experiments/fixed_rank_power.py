@@ -3,7 +3,7 @@ pre-registered analysis from those rows only, and the power it was planned with.
 
     python docs/experiments/fixed_rank_power.py export results/fixed-rank-power
     python docs/experiments/fixed_rank_power.py report          # prints the report's tables
-    python docs/experiments/fixed_rank_power.py power           # the planning table (~1 min)
+    python docs/experiments/fixed_rank_power.py power           # the planning table (9,604 data sets a row)
 
 `export` copies each finished unit's eval.csv and episodes.csv (gzip) to
 docs/experiments/fixed-rank-power/rows/hopper/<method>/ (never checkpoints; a unit still training
@@ -21,6 +21,7 @@ no test.
 from __future__ import annotations
 
 import itertools
+import math
 import sys
 from pathlib import Path
 
@@ -134,37 +135,80 @@ def report(data: dict[int, dict]) -> list[str]:
 
 
 # ---------------------------------------------------------------- planning: the power table
-def _exact_p(groups: np.ndarray, x: np.ndarray, y: np.ndarray) -> float:
-    """`stats.permutation_p_value(x, y)` for equal arms, over splits `groups` enumerated once by
-    the caller (the power simulation tests hundreds of data sets of the same size)."""
-    pooled = np.concatenate([x, y])
-    sums = pooled[groups].sum(axis=1)
-    null = sums / x.size - (pooled.sum() - sums) / y.size
-    return stats._two_sided(null, x.mean() - y.mean())
+HALF_WIDTH = 0.01  # the Monte-Carlo error the power table is to have, at 95%
+CHUNK = 32  # data sets whose exact p are computed in one matrix product
+
+
+def sims_for(half_width: float = HALF_WIDTH, z: float = 1.959964) -> int:
+    """Data sets per row so that a simulated power's 95% band, z·√(p(1 − p)/n) (the binomial
+    SE), is at most ±half_width whatever p is: its worst case p = 0.5 gives n = ⌈(z/2w)²⌉,
+    9,604 for ±0.01."""
+    return math.ceil((z / (2.0 * half_width)) ** 2)
+
+
+def band(power: float, sims: int, z: float = 1.959964) -> float:
+    """Half-width of the 95% Monte-Carlo band of a power simulated on `sims` data sets."""
+    return z * math.sqrt(power * (1.0 - power) / sims)
+
+
+def _splits(n_x: int, n_y: int) -> np.ndarray:
+    """Every split of n_x + n_y seeds into a first group of n_x, as 0/1 rows (C(20, 10) = 184,756
+    at 10 vs 10); the first row is the observed split."""
+    first = np.array(list(itertools.combinations(range(n_x + n_y), n_x)), dtype=np.intp)
+    indicator = np.zeros((first.shape[0], n_x + n_y))
+    np.put_along_axis(indicator, first, 1.0, axis=1)
+    return indicator
+
+
+def _exact_ps(indicator: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """`stats.permutation_p_value(x[i], y[i])` for each row i of the (data sets × seeds) arrays
+    x and y, over the splits `indicator` (`_splits`) enumerated once by the caller: the null
+    difference of means of every split as one matrix product, `stats._two_sided`'s p and tie
+    tolerance applied per row."""
+    n_x, n_y = x.shape[1], y.shape[1]
+    pooled = np.concatenate([x, y], axis=1)
+    sums = pooled @ indicator.T
+    null = sums / n_x - (pooled.sum(axis=1, keepdims=True) - sums) / n_y
+    observed = (x.mean(axis=1) - y.mean(axis=1))[:, None]
+    scale = np.maximum(np.abs(observed), np.abs(null).max(axis=1, keepdims=True))
+    tol = 1e-12 * np.maximum(scale, 1e-300)
+    less = np.mean(null <= observed + tol, axis=1)
+    greater = np.mean(null >= observed - tol, axis=1)
+    return np.minimum(1.0, 2.0 * np.minimum(less, greater))
 
 
 def _permutation_power(draw, sims: int, alphas: tuple, rng: np.random.Generator) -> list[float]:
     """Rejection rates of the two-sided exact permutation test over `sims` data sets
-    (x, y) = draw(rng), at each level in `alphas`."""
-    groups = np.array(list(itertools.combinations(range(2 * SEEDS), SEEDS)), dtype=np.intp)
+    (x, y) = draw(rng), drawn one after another, at each level in `alphas`."""
+    indicator = _splits(SEEDS, SEEDS)
     rejections = np.zeros(len(alphas))
-    for _ in range(sims):
-        p = _exact_p(groups, *draw(rng))
-        rejections += [p < a for a in alphas]
+    for start in range(0, sims, CHUNK):
+        drawn = [draw(rng) for _ in range(min(CHUNK, sims - start))]
+        x, y = (np.array(arm, dtype=float) for arm in zip(*drawn, strict=True))
+        p = _exact_ps(indicator, x, y)
+        rejections += [np.count_nonzero(p < a) for a in alphas]
     return (rejections / sims).tolist()
 
 
-def power_table(sims: int = 400, seed: int = 0) -> list[str]:
+def power_table(sims: int | None = None, seed: int = 0) -> list[str]:
     """Power of each primary test at 10 vs 10 seeds: normal arms of equal SD (Welch's computed
     power beside the permutation test's simulated one), and two-kind arms where a seed hops
     (score ~ N(2,400, 300)) or not (~ N(700, 300)) with the arms' hop probabilities differing.
-    α = 0.05, and 0.025, the level the smaller p of the two faces under Holm."""
+    α = 0.05, and 0.025, the level the smaller p of the two faces under Holm. `sims` data sets
+    per row (default `sims_for()`, 9,604: a 95% band of at most ±0.01), each simulated power
+    with its own band."""
+    sims = sims_for() if sims is None else sims
     rng = np.random.default_rng(seed)
     alphas = (0.05, 0.025)
     lines = [
-        "| arms | true difference | permutation power, α 0.05 / 0.025 | Welch power, α 0.05 / 0.025 |",  # fmt: skip
+        "| arms | true difference | permutation power, α 0.05 / 0.025 (95% band) "
+        "| Welch power, α 0.05 / 0.025 |",
         "| --- | ---: | ---: | ---: |",
     ]
+
+    def simulated(perm):
+        return " / ".join(f"{q:.3f} ± {band(q, sims):.3f}" for q in perm)
+
     for sd in (600, 900, 1200):
         for factor in (1.0, 1.33):
             delta = round(factor * sd)
@@ -175,8 +219,8 @@ def power_table(sims: int = 400, seed: int = 0) -> list[str]:
             perm = _permutation_power(normal, sims, alphas, rng)
             welch = [stats.welch_power(delta, sd, sd, SEEDS, SEEDS, a) for a in alphas]
             lines.append(
-                f"| normal, SD {sd:,} | {delta:,} | {perm[0]:.2f} / {perm[1]:.2f} "
-                f"| {welch[0]:.2f} / {welch[1]:.2f} |"
+                f"| normal, SD {sd:,} | {delta:,} | {simulated(perm)} "
+                f"| {welch[0]:.3f} / {welch[1]:.3f} |"
             )
     for h_x, h_y in ((0.6, 0.2), (0.7, 0.2), (0.8, 0.2)):
 
@@ -189,9 +233,8 @@ def power_table(sims: int = 400, seed: int = 0) -> list[str]:
 
         perm = _permutation_power(two_kinds, sims, alphas, rng)
         delta = (h_x - h_y) * 1700.0
-        lines.append(
-            f"| hop with p {h_x} vs {h_y} | {delta:,.0f} | {perm[0]:.2f} / {perm[1]:.2f} | — |"
-        )
+        lines.append(f"| hop with p {h_x} vs {h_y} | {delta:,.0f} | {simulated(perm)} | — |")
+    lines += ["", f"({sims:,} simulated data sets per row, seed {seed}.)"]
     return lines
 
 

@@ -114,15 +114,39 @@ def test_no_difference_is_not_detected(script, tmp_path):
 
 
 def test_the_simulations_exact_p_is_adarls(script):
-    import itertools
-
+    """The batched p of the power simulation (one matrix product over all splits) is
+    `stats.permutation_p_value` row by row, ties included: identical arms give 1, fully
+    separated arms 2/C(12, 6), a shifted copy of the same values the tie at the observed split."""
     from adarl import stats
 
     rng = np.random.default_rng(2)
-    groups = np.array(list(itertools.combinations(range(12), 6)))
-    for _ in range(3):
-        x, y = rng.normal(0.5, 1, 6), rng.normal(0, 1, 6)
-        assert script._exact_p(groups, x, y) == pytest.approx(stats.permutation_p_value(x, y))
+    x, y = rng.normal(0.5, 1, (5, 6)), rng.normal(0, 1, (5, 6))
+    x[1], y[2] = y[1], x[2] + 10.0  # identical arms; separated arms
+    y[3] = x[3] - 0.25  # a pure shift
+    indicator = script._splits(6, 6)
+    assert indicator.shape == (math.comb(12, 6), 12) and (indicator.sum(axis=1) == 6).all()
+    got = script._exact_ps(indicator, x, y)
+    want = [stats.permutation_p_value(a, b) for a, b in zip(x, y, strict=True)]
+    assert got == pytest.approx(want, abs=1e-12)
+    assert got[1] == 1.0 and got[2] == pytest.approx(2 / math.comb(12, 6))
+
+
+def test_the_power_tables_number_of_data_sets_gives_a_band_of_0_01(script):
+    """n from the binomial SE: 1.96·√(0.25/n) ≤ 0.01 first at n = 9,604 (p = 0.5 is the worst
+    case), and each cell's band is 1.96·√(p̂(1 − p̂)/n); the doc says both."""
+    n = script.sims_for()
+    assert n == 9604
+    assert 1.959964 * math.sqrt(0.25 / n) <= 0.01 < 1.959964 * math.sqrt(0.25 / (n - 1))
+    assert script.band(0.8, n) == pytest.approx(1.959964 * math.sqrt(0.16 / n))
+    doc = " ".join((EXPERIMENTS / "fixed-rank-power.md").read_text().split())
+    assert "9,604 simulated data sets per row" in doc
+
+
+def test_the_power_table_says_its_bands_and_data_sets(script):
+    lines = script.power_table(sims=40, seed=1)
+    rows = [line for line in lines if line.startswith("| normal") or line.startswith("| hop")]
+    assert len(rows) == 9 and all(" ± " in row for row in rows)
+    assert lines[-1] == "(40 simulated data sets per row, seed 1.)"
 
 
 def test_power_simulation_holds_its_level_and_finds_large_gaps(script):
@@ -149,3 +173,34 @@ def test_a_folder_that_is_not_there_is_refused(script, tmp_path, capsys):
         with pytest.raises(SystemExit, match="2"):
             script.main([command, str(tmp_path / "nope")])
         assert "nope is not a folder" in capsys.readouterr().err
+
+
+def test_the_docs_power_table_is_consistent_with_the_script(script):
+    """fixed-rank-power.md's power table (the script's output, 9,604 data sets a row; too slow
+    to rerun here): its Welch column is adarl's Welch power, each band is 1.96·√(p̂(1 − p̂)/n) of
+    its own p̂, every band is within ±0.01, and the normal rows' permutation power holds the
+    pooled t-test's (scipy's noncentral t, computed here) inside its band."""
+    from scipy import stats as st
+
+    from adarl import stats
+
+    doc = (EXPERIMENTS / "fixed-rank-power.md").read_text()
+    rows = [line for line in doc.splitlines() if line.startswith(("| normal, SD", "| hop with p"))]
+    assert len(rows) == 9
+    n = script.sims_for()
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        for cell in cells[2].split(" / "):
+            p_hat, band = (float(v) for v in cell.split(" ± "))
+            assert round(script.band(p_hat, n), 3) == band and band <= 0.01
+        if not row.startswith("| normal"):
+            continue
+        sd, delta = (float(v.replace(",", "")) for v in (cells[0].split("SD ")[1], cells[1]))
+        welch = [float(v) for v in cells[3].split(" / ")]
+        assert welch == [round(stats.welch_power(delta, sd, sd, 10, 10, a), 3) for a in (0.05, 0.025)]  # fmt: skip
+        for cell, alpha in zip(cells[2].split(" / "), (0.05, 0.025), strict=True):
+            p_hat, band = (float(v) for v in cell.split(" ± "))
+            critical = st.t.ppf(1 - alpha / 2, 18)
+            nc = delta / (sd * math.sqrt(2 / 10))
+            pooled_t = st.nct.sf(critical, 18, nc) + st.nct.cdf(-critical, 18, nc)
+            assert abs(p_hat - pooled_t) <= band + 0.0005, (row, alpha, pooled_t)
