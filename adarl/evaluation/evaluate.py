@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from adarl.envs.tasks import env_options
+from adarl.envs.tasks import env_options, kwargs_text
 from adarl.errors import UsageError
 from adarl.evaluation import grid
 from adarl.evaluation.parallel import run_units
@@ -86,36 +86,75 @@ class Unit:
     eval_seed: int
     max_steps: int | None = None
     label: str = field(default="")
-    env: tuple[tuple[str, str], ...] = ()  # the run's physics and model version (`make` keywords)
+    # `make`'s keywords from the run: physics, model version, env-kwargs, env-module
+    env: tuple[tuple[str, str], ...] = ()
 
 
 # ----------------------------------------------------------------------------- planning
-GYM_PREFIX = "gym:"  # plain Gymnasium tasks (`gym:Pendulum-v1`): fixed dynamics, no parameters
+def run_task(run: Run):
+    """The `TaskSpec` a run trained on, made as its config says (`env_kwargs`, `env_module`,
+    `model_version`: `adarl.envs.tasks.task_of`)."""
+    from adarl.envs.tasks import task_of
+
+    return task_of(run.config)
 
 
-def task_parameters(task: str) -> list[str]:
-    """Names of the physical parameters of `task` (from `adarl.envs.get_task`)."""
-    if task.startswith(GYM_PREFIX):
-        return []
+def run_env_options(run: Run) -> dict[str, str]:
+    """`make`'s keywords for a run's evaluation envs: its physics and model version, and for a
+    Gymnasium id its `env_kwargs` and `env_module` where it has them (a user's XML, the package
+    that registers a user's id)."""
+    options = env_options(run.config)
+    for key in ("env_kwargs", "env_module"):
+        value = run.config.get(key) or ""
+        if value:
+            options[key] = value if isinstance(value, str) else kwargs_text(value)
+    return options
+
+
+def task_parameters(task) -> list[str]:
+    """Names of the physical parameters of `task` (a `TaskSpec` or a name for
+    `adarl.envs.get_task`); none for a task with fixed dynamics."""
     from adarl.envs import get_task
 
     return list(get_task(task).all_params)
 
 
-def check_dynamics(spec: str, task: str) -> None:
-    """Let `adarl.envs.parse_dynamics` reject a bad spec before any work starts."""
-    if task.startswith(GYM_PREFIX):
-        if spec not in ("nominal", "paper", "default"):
-            raise UsageError(f"task {task!r} has fixed dynamics; allowed: nominal")
-        return
-    from adarl.envs import parse_dynamics
+def check_dynamics(spec: str, task) -> None:
+    """Let `adarl.envs.parse_dynamics` reject a bad spec before any work starts (`task`: a
+    `TaskSpec` or a name); a task with fixed dynamics takes `nominal`, `paper` or `default`."""
+    from adarl.envs import get_task, parse_dynamics
 
+    task = get_task(task)
+    if task.kind == "gym":
+        if spec not in ("nominal", "paper", "default"):
+            raise UsageError(
+                f"task {task.name!r} has fixed dynamics; allowed: nominal (got {spec!r})"
+            )
+        return
     parse_dynamics(spec, task)
+
+
+def _addressed_check(task, physics: str):
+    """The check `grid.build_grid` runs on an addressed name for `task` (None where the task
+    has no addressable elements): `ompo` physics, which edits the compiled model, takes none.
+    Whether the element exists is `check_dynamics`'s to say (one line naming the model's)."""
+    if task.kind == "gym":
+        return None
+
+    def check(name: str) -> None:
+        if physics == "ompo":
+            raise UsageError(
+                f"addressed parameter {name!r} needs physics 'consistent'; allowed for a run "
+                f"trained under ompo: {', '.join(task.all_params)}"
+            )
+
+    return check
 
 
 def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
     """All units for `runs` under `spec`, validated (checkpoints, seeds, parameters, grid); the
-    episodes are counted (`grid.check_episodes`) before any grid is built."""
+    episodes are counted (`grid.check_episodes`) before any grid is built. Every run's envs are
+    made as it trained them (its task spec, physics, model version, env-kwargs, env-module)."""
     points = math.prod(len(a.values) for a in spec.axes)
     seeds = sum(len(run.seeds) for run in runs)
     grid.check_episodes(
@@ -123,17 +162,26 @@ def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
         f"{points:,} points x {seeds} seeds x {spec.episodes} episodes",
     )
     units: list[Unit] = []
-    grids: dict[str, list[dict[str, float]]] = {}
+    grids: dict[tuple, list[dict[str, float]]] = {}
     for index, run in enumerate(runs):
         checkpoint = select_checkpoint(run.path, spec.checkpoint)
         files = policy_files(checkpoint)
-        if run.task not in grids:
-            check_dynamics(spec.dynamics, run.task)
-            points = grid.build_grid(spec.axes, spec.holds, task_parameters(run.task), run.task)
+        options = run_env_options(run)
+        key = (run.task, *sorted(options.items()))
+        if key not in grids:
+            task = run_task(run)
+            check_dynamics(spec.dynamics, task)
+            points = grid.build_grid(
+                spec.axes,
+                spec.holds,
+                task_parameters(task),
+                task.name,
+                _addressed_check(task, options["physics"]),
+            )
             for point in points:  # values out of range fail here, before any episode
-                check_dynamics(grid.point_label(spec.dynamics, point), run.task)
-            grids[run.task] = points
-        for point in grids[run.task]:
+                check_dynamics(grid.point_label(spec.dynamics, point), task)
+            grids[key] = points
+        for point in grids[key]:
             for seed, path in files.items():
                 units.append(
                     Unit(
@@ -148,7 +196,7 @@ def plan(runs: Sequence[Run], spec: EvalSpec) -> list[Unit]:
                         eval_seed=spec.eval_seed,
                         max_steps=spec.max_steps,
                         label=grid.point_label(spec.dynamics, point),
-                        env=tuple(env_options(run.config).items()),
+                        env=tuple(options.items()),
                     )
                 )
     return units
@@ -231,6 +279,7 @@ def write_evaluation(
         "name": spec.name,
         "run": str(run.path),
         "task": run.task,
+        **{k: run.config[k] for k in ("env_kwargs", "env_module") if run.config.get(k)},
         "dynamics": spec.dynamics,
         "sweep": {a.name: list(a.values) for a in spec.axes},
         "hold": dict(spec.holds),

@@ -1,6 +1,10 @@
 """Dynamics grids for evaluation sweeps: parsing `--sweep P=lo:hi:n`, `--hold P=v` and
 `--dynamics sweep:…`, and naming the grid's points and output files.
 
+`P` is a named parameter (`torso_length`, `mass_scale`) or an addressed one, `KIND:NAME.ATTR[i]`
+(`body:torso.mass`, `geom:floor.friction[0]`: adarl.envs.elements), whose own colon is why a
+name is split from its values at the last `=` (no value holds one).
+
 A grid is the Cartesian product of its swept axes, with the held parameters fixed at one value;
 every point is a dict `{parameter: value}` that is passed to the environment as fixed parameter
 overrides on top of a base dynamics spec (`nominal` by default). Pure functions, no I/O.
@@ -11,7 +15,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,13 +70,46 @@ def _clean(value: float) -> float:
 
 
 def _split_assignment(text: str, flag: str) -> tuple[str, str]:
-    name, sep, rhs = text.partition("=")
+    """`PARAM=VALUE` -> (PARAM, VALUE), split at the last `=`: an addressed name holds a colon,
+    as `LO:HI:N` does, and no value holds an `=`."""
+    name, sep, rhs = text.rpartition("=")
     name = name.strip()
-    if not sep or not rhs.strip():
+    if not sep or not rhs.strip() or not name:
         raise UsageError(f"{flag} {text!r}: expected PARAM=VALUE")
-    if not _NAME.match(name):
-        raise UsageError(f"{flag} {text!r}: {name!r} is not a parameter name")
+    check_name(name, f"{flag} {text!r}")
     return name, rhs.strip()
+
+
+def check_name(name: str, what: str) -> None:
+    """A one-line `UsageError` unless `name` is a parameter name (`torso_length`) or a
+    well-formed addressed one (`KIND:NAME.ATTR[i]`; whether the element exists is the task's
+    to say, `build_grid`)."""
+    from adarl.envs.params import is_addressed
+
+    if is_addressed(name):
+        from adarl.envs.elements import parse_address
+
+        try:
+            parse_address(name)
+        except UsageError as exc:
+            raise UsageError(f"{what}: {exc}") from None
+    elif not _NAME.match(name):
+        raise UsageError(
+            f"{what}: {name!r} is not a parameter name; allowed: a task's parameter "
+            "(adarl tasks TASK) or KIND:NAME.ATTR[i] such as body:torso.mass"
+        )
+
+
+def parameter_key(name: str):
+    """What `name` sets: itself, or for an addressed name its element and component, so that
+    `geom:floor.friction` and `geom:floor.friction[0]` are the same parameter."""
+    from adarl.envs.params import is_addressed
+
+    if is_addressed(name):
+        from adarl.envs.elements import parse_address
+
+        return parse_address(name)
+    return name
 
 
 def parse_axis(text: str, episodes: int = 1) -> Axis:
@@ -140,7 +177,7 @@ def split_dynamics(spec: str, episodes: int = 1) -> tuple[str, list[Axis], list[
     for item in (part.strip() for part in body.split(",")):
         if not item:
             continue
-        if ":" in item.partition("=")[2]:
+        if ":" in item.rpartition("=")[2]:
             axes.append(parse_axis(item, episodes))
         else:
             holds.append(parse_hold(item))
@@ -154,25 +191,37 @@ def build_grid(
     holds: Iterable[tuple[str, float]],
     allowed: Iterable[str],
     task: str = "",
+    addressed: Callable[[str], object] | None = None,
 ) -> list[dict[str, float]]:
     """All points of the grid, in row-major order of `axes` (the last axis varies fastest).
 
-    Checks that every parameter is one of `allowed` (the task's parameters), that none is swept
-    twice or both swept and held; raises a one-line `UsageError` otherwise. With no axes the grid
-    is the single point of the held values (possibly empty: the base dynamics alone).
+    Checks that every parameter is one of `allowed` (the task's parameters) or, where the task
+    has addressable elements, an addressed name `addressed` accepts (it raises a one-line
+    `UsageError` naming an element the model does not have), and that none is swept twice or
+    both swept and held (`geom:floor.friction` is `geom:floor.friction[0]`); raises a one-line
+    `UsageError` otherwise. With no axes the grid is the single point of the held values
+    (possibly empty: the base dynamics alone).
     """
+    from adarl.envs.params import is_addressed
+
     allowed = list(allowed)
     holds = list(holds)
     where = f" of task {task}" if task else ""
-    seen: set[str] = set()
+    seen: dict[object, str] = {}
     for name in [a.name for a in axes] + [h[0] for h in holds]:
-        if name not in allowed:
+        if is_addressed(name) and addressed is not None:
+            addressed(name)
+        elif name not in allowed:
+            more = " or KIND:NAME.ATTR (body:torso.mass, ...)" if addressed is not None else ""
             raise UsageError(
-                f"unknown parameter {name!r}{where}; allowed: {', '.join(allowed) or '(none)'}"
+                f"unknown parameter {name!r}{where}; allowed: "
+                f"{', '.join(allowed) or '(none: fixed dynamics)'}{more}"
             )
-        if name in seen:
-            raise UsageError(f"parameter {name!r} is swept or held more than once")
-        seen.add(name)
+        key = parameter_key(name)
+        if key in seen:
+            same = "" if seen[key] == name else f" (as {seen[key]!r})"
+            raise UsageError(f"parameter {name!r} is swept or held more than once{same}")
+        seen[key] = name
     points = []
     for combo in itertools.product(*(a.values for a in axes)):
         point = {a.name: v for a, v in zip(axes, combo)}
@@ -216,5 +265,5 @@ def evaluation_name(
         parts.append(f"hold-{name}-{format_value(value)}")
     if step is not None:
         parts.append(f"step-{step}")
-    name = "_".join(parts)
+    name = re.sub(r"\[(\d+)\]", r".\1", "_".join(parts))  # friction[1] -> friction.1
     return re.sub(r"[^A-Za-z0-9_.=+-]+", "-", name).strip("-") or "evaluation"

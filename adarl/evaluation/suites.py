@@ -14,9 +14,14 @@ publish. Sources, per suite (docs/evaluation.md has the ranges next to their fil
   Antv2-*}.yaml, grid `np.linspace(min, max, 10)` per dimension and 30 episodes per point
   (evaluate.py, `--num_evaluate_point 10`, `--evaluate_num 30`), on Gymnasium's robot.
 * `rrls-1d`, `rrls-2d`, `rrls-3d`: Zouitine et al. 2024, "RRLS: Robust Reinforcement Learning
-  Suite", code SuReLI/RRLS: the same ranges (rrls/envs/{hopper,walker,ant}.py `*ParamsBound`),
-  grid `np.arange(min, max, (max - min) / 10)` (rrls/evaluate.py): 10 points, the upper bound left
-  out. RRLS fixes no episode count; we keep M2TD3's 30.
+  Suite", code SuReLI/RRLS (commit 0c43dc9): on Hopper, Walker2d and Ant the same ranges
+  (rrls/envs/{hopper,walker,ant}.py `*ParamsBound`); on `HalfCheetah-v5`, `InvertedPendulum-v5`
+  (1-D and 2-D only) and `HumanoidStandup-v5` RRLS's own sets (rrls/envs/{half_cheetah,pendulum,
+  humanoid}.py), as addressed body masses and HalfCheetah's world friction as `friction_scale`.
+  Grid: 10 points per dimension with both ends, as M2TD3's; RRLS's rrls/evaluate.py spaces them
+  with `np.arange(min, max, (max - min) / 10)`, which leaves the upper bound out of the set it
+  evaluates (a defect not copied; `grid_values(..., "arange")` gives its points). RRLS fixes no
+  episode count; we keep M2TD3's 30.
 * `paper`: the AdaRL paper's training ranges (c ∓ |a| of each schedule formula, adarl.envs.tasks):
   Hopper/Walker2d torso x foot length, Ant/Humanoid gravity x wind, 10 points per dimension
   (linspace), 10 episodes per point, other parameters at the nominal point.
@@ -60,7 +65,7 @@ class Suite:
     ranges: tuple[Range, ...]
     source: str
     points: int = 10  # per dimension
-    spacing: str = "linspace"  # linspace: both ends (M2TD3); arange: upper end left out (RRLS)
+    spacing: str = "linspace"  # linspace: both ends; arange: upper end left out (RRLS's code)
     base: str = "fixed"  # dynamics of the parameters not varied: fixed = Gymnasium's robot
     episodes: int = 30
 
@@ -92,6 +97,8 @@ def grid_values(low: float, high: float, points: int, spacing: str) -> tuple[flo
 # ----------------------------------------------------------------------------- definitions
 _M2TD3 = "Tanabe et al. 2022 (M2TD3), akimotolab/M2TD3 configs/environment/{file}.yaml"
 _RRLS = "Zouitine et al. 2024 (RRLS), SuReLI/RRLS rrls/envs/{file}.py {bound}"
+#: Sliding friction of every geom of Gymnasium's half_cheetah.xml (its default class; condim 3).
+HALF_CHEETAH_FRICTION = 0.4
 
 #: (M2TD3 config file, RRLS file, ranges) per task and dimension; RRLS's bounds equal M2TD3's.
 _LITERATURE = {
@@ -138,6 +145,55 @@ _LITERATURE = {
 _BOUNDS = ("ONE_DIM", "TWO_DIM", "THREE_DIM")
 
 
+def _world_friction(low: float, high: float) -> Range:
+    """RRLS's HalfCheetah `worldfriction` [low, high]: it writes `geom_friction[:, 0]`, every
+    geom's sliding friction (rrls/envs/half_cheetah.py:175), which on Gymnasium's model, every geom
+    at 0.4 and condim 3 (torsional and rolling friction unused), is `friction_scale` = value / 0.4.
+    Setting the floor's alone would differ below 0.4: MuJoCo takes the larger of two geoms'."""
+    return Range("friction_scale", low / HALF_CHEETAH_FRICTION, high / HALF_CHEETAH_FRICTION)
+
+
+#: RRLS's own sets on Gymnasium tasks outside the paper's four, as adarl's parameters: (RRLS
+#: file, its bounds class, the ranges of ONE_DIM, TWO_DIM, THREE_DIM in RRLS's order). Each
+#: RRLS mass `body_mass[i]` is the body Gymnasium's XML has at index i (`body:NAME.mass`).
+_RRLS_OWN = {
+    "HalfCheetah-v5": (
+        "half_cheetah",
+        "HalfCheetahParamsBound",
+        [
+            [_world_friction(0.1, 3.0)],
+            [_world_friction(0.1, 4.0), Range("body:torso.mass", 0.1, 7.0)],
+            [
+                _world_friction(0.1, 4.0),
+                Range("body:torso.mass", 0.1, 7.0),
+                Range("body:bthigh.mass", 0.1, 3.0),
+            ],
+        ],
+    ),
+    "InvertedPendulum-v5": (
+        "pendulum",
+        "InvertedPendulumParamsBound",
+        [
+            [Range("body:pole.mass", 1.0, 31.0)],
+            [Range("body:pole.mass", 1.0, 31.0), Range("body:cart.mass", 1.0, 11.0)],
+        ],
+    ),
+    "HumanoidStandup-v5": (
+        "humanoid",
+        "HumanoidStandupParamsBound",
+        [
+            [Range("body:torso.mass", 0.1, 16.0)],
+            [Range("body:torso.mass", 0.1, 16.0), Range("body:right_foot.mass", 0.1, 8.0)],
+            [
+                Range("body:torso.mass", 0.1, 16.0),
+                Range("body:left_thigh.mass", 0.1, 5.0),
+                Range("body:right_foot.mass", 0.1, 8.0),
+            ],
+        ],
+    ),
+}
+
+
 def _literature_suites() -> dict[str, dict[str, Suite]]:
     suites: dict[str, dict[str, Suite]] = {}
     for task, sets in _LITERATURE.items():
@@ -145,13 +201,14 @@ def _literature_suites() -> dict[str, dict[str, Suite]]:
             m2td3 = Suite(f"m2td3-{dim}d", task, tuple(ranges), _M2TD3.format(file=config))
             bound = f"{rrls_file.capitalize()}ParamsBound.{_BOUNDS[dim - 1]}"
             rrls = replace(
-                m2td3,
-                name=f"rrls-{dim}d",
-                spacing="arange",
-                source=_RRLS.format(file=rrls_file, bound=bound),
+                m2td3, name=f"rrls-{dim}d", source=_RRLS.format(file=rrls_file, bound=bound)
             )
             for suite in (m2td3, rrls):
                 suites.setdefault(suite.name, {})[task] = suite
+    for task, (rrls_file, bounds, sets) in _RRLS_OWN.items():
+        for dim, ranges in enumerate(sets, start=1):
+            source = _RRLS.format(file=rrls_file, bound=f"{bounds}.{_BOUNDS[dim - 1]}")
+            suites[f"rrls-{dim}d"][task] = Suite(f"rrls-{dim}d", task, tuple(ranges), source)
     return dict(sorted(suites.items()))  # m2td3-1d, m2td3-2d, …, rrls-3d
 
 
@@ -176,6 +233,16 @@ def _paper_suites() -> dict[str, Suite]:
 SUITES: dict[str, dict[str, Suite]] = _literature_suites() | {"paper": _paper_suites()}
 
 
+def suite_task(task: str) -> str:
+    """The key a task has in `SUITES`: the paper's names in lower case, a Gymnasium id without
+    its `gym:` prefix (`gym:HalfCheetah-v5` is `HalfCheetah-v5`)."""
+    from adarl.envs.tasks import GYM_PREFIX, TASKS
+
+    task = str(task).strip()
+    task = task[len(GYM_PREFIX) :] if task.startswith(GYM_PREFIX) else task
+    return task.lower() if task.lower() in TASKS else task
+
+
 def get_suite(name: str, task: str, points: int | None = None) -> Suite:
     """The suite `name` for `task` (with `points` per dimension instead of its own, when given:
     `adarl evaluate --suite NAME --points N`, a coarser grid over the same ranges); a one-line
@@ -183,6 +250,7 @@ def get_suite(name: str, task: str, points: int | None = None) -> Suite:
     no set for the task."""
     if name not in SUITES:
         raise UsageError(f"unknown suite {name!r}; allowed: {', '.join(SUITES)}")
+    task = suite_task(task)
     if task not in SUITES[name]:
         allowed = [n for n, by_task in SUITES.items() if task in by_task]
         raise UsageError(
@@ -255,6 +323,8 @@ def plan_suite(
     from adarl.evaluation.evaluate import plan
 
     suites = [get_suite(name, run.task, points) for run in runs]  # every run checked first
+    for run in runs:
+        check_model(run, name)
     seeds: dict[tuple[int, int], int] = {}  # (points, episodes) -> seeds: counted, not built
     for suite, run in zip(suites, runs):
         key = (suite.size, suite.episodes if episodes is None else episodes)
@@ -268,6 +338,20 @@ def plan_suite(
         spec = suite_spec(suite, episodes, **kwargs)
         units += [replace(u, run_index=index) for u in plan([run], spec)]
     return units
+
+
+def check_model(run, name: str) -> None:
+    """A one-line `UsageError` if `run` trained a Gymnasium id on a model of its own
+    (`env_kwargs` with `xml_file`): a published set is defined on Gymnasium's model."""
+    from adarl.envs.tasks import parse_env_kwargs
+
+    kwargs = parse_env_kwargs(run.config.get("env_kwargs") or "")
+    if "xml_file" in kwargs:
+        raise UsageError(
+            f"suite {name!r} is defined on Gymnasium's {suite_task(run.task)} model, but "
+            f"{run.path} trained on xml_file={kwargs['xml_file']}; allowed: a run on "
+            "Gymnasium's model (evaluate yours with --sweep)"
+        )
 
 
 def run_suite(

@@ -108,3 +108,55 @@ def test_bad_folders_exit_2(tmp_path, capsys):
     write_run(tmp_path / "two", "b", algo="sac")
     assert main(["evaluate", str(tmp_path / "two"), "--out", str(tmp_path / "x.csv")]) == 2
     assert "--out names one CSV but 2 runs" in capsys.readouterr().err
+
+
+def cheetah_run(root, name="hc"):
+    """A synthetic HalfCheetah-v5 run (a Gymnasium id outside the paper's four)."""
+    import synthetic_runs
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setitem(synthetic_runs.DIMS, "HalfCheetah-v5", (17, 6))
+        patch.setitem(synthetic_runs.PARAMS, "HalfCheetah-v5", {"mass_scale": 1.0})
+        return write_run(root, name, algo="sac", task="HalfCheetah-v5", seeds=(0,))
+
+
+def test_addressed_parameters_on_a_gymnasium_task_and_a_paper_task(tmp_path, capsys):
+    cheetah = cheetah_run(tmp_path)
+    argv = ["evaluate", str(cheetah), "--sweep", "body:torso.mass=4:9:3", *FAST]
+    assert main([*argv, "--hold", "geom:floor.friction[0]=0.8"]) == 0
+    name = "sweep-body-torso.mass-4-9-3_hold-geom-floor.friction.0-0.8"
+    table = pd.read_csv(cheetah / "evaluations" / f"{name}.csv")
+    assert list(table["p_body:torso.mass"]) == [4.0, 6.5, 9.0]
+    assert set(table["p_geom:floor.friction[0]"]) == {0.8}
+    meta = json.loads((cheetah / "evaluations" / f"{name}.json").read_text())
+    assert meta["sweep"] == {"body:torso.mass": [4.0, 6.5, 9.0]}
+    assert "--sweep body:torso.mass=4:9:3 --hold 'geom:floor.friction[0]=0.8'" in meta["command"]
+    out = capsys.readouterr().out
+    assert "nominal:body:torso.mass=6.5,geom:floor.friction[0]=0.8:" in out
+    hopper = write_run(tmp_path, "hopper", seeds=(0,))
+    argv = ["evaluate", str(hopper), "--dynamics", "sweep:body:thigh.mass=2:4:2,wind=0", *FAST]
+    assert main(argv) == 2  # hopper has no wind
+    assert "unknown parameter 'wind' of task hopper" in capsys.readouterr().err
+    argv[3] = "sweep:body:thigh.mass=2:4:2,foot_length=0.3"
+    assert main(argv) == 0
+    table = pd.read_csv(
+        hopper / "evaluations" / "sweep-body-thigh.mass-2-4-2_hold-foot_length-0.3.csv"
+    )
+    assert list(table["p_body:thigh.mass"]) == [2.0, 4.0]
+
+
+@pytest.mark.parametrize(
+    "extra, fragment",
+    [
+        (["--sweep", "body:tail.mass=1:2:2"], "unknown body 'tail' in 'body:tail.mass'; allowed: torso"),
+        (["--sweep", "body:torso.volume=1:2:2"], "unknown attribute 'volume'"),
+        (["--hold", "actuator:bthigh.gear=0"], "bad value"),
+        (["--sweep", "torso_length=0.3:0.5:2"], "unknown parameter 'torso_length' of task HalfCheetah-v5"),
+    ],
+)  # fmt: skip
+def test_bad_addressed_requests_exit_2_and_write_nothing(tmp_path, capsys, extra, fragment):
+    run = cheetah_run(tmp_path)
+    assert main(["evaluate", str(run), *extra, *FAST]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and fragment in err, err
+    assert not (run / "evaluations").exists()

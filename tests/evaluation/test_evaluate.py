@@ -144,3 +144,110 @@ def test_export_copies_the_policy_and_counts_parameters(tmp_path):
     assert done.n_params < done.n_params_full and 0 < done.kept < 1
     with pytest.raises(UsageError, match="is a folder"):
         export_policy(run, 1, tmp_path)
+
+
+# ----------------------------------------------------------------------------- any task
+def write_task_run(root, name, task, dims, params, **kwargs):
+    """A synthetic run of a task `synthetic_runs` does not know (`dims`: obs, act sizes)."""
+    import synthetic_runs
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setitem(synthetic_runs.DIMS, task, dims)
+        patch.setitem(synthetic_runs.PARAMS, task, params)
+        return load_run(write_run(root, name, task=task, **kwargs))
+
+
+CHEETAH_PARAMS = {"mass_scale": 1.0, "friction_scale": 1.0}
+
+
+@pytest.fixture(scope="module")
+def cheetah(tmp_path_factory):
+    return write_task_run(
+        tmp_path_factory.mktemp("hc"), "sac", "HalfCheetah-v5", (17, 6), CHEETAH_PARAMS,
+        algo="sac", seeds=(0,),
+    )  # fmt: skip
+
+
+def test_a_gymnasium_task_sweeps_generic_and_addressed_parameters(cheetah):
+    s = spec(
+        sweeps=["body:torso.mass=4:9:2"], holds=["friction_scale=0.5"], episodes=1, max_steps=5
+    )
+    units = evaluate.plan([cheetah], s)
+    assert [u.label for u in units] == [
+        "nominal:body:torso.mass=4,friction_scale=0.5",
+        "nominal:body:torso.mass=9,friction_scale=0.5",
+    ]
+    (table,) = evaluate.tables([cheetah], units, workers=1)
+    assert list(table["p_body:torso.mass"]) == [4.0, 9.0]
+    assert set(table["p_friction_scale"]) == {0.5} and set(table["length"]) == {5}
+    # the model's elements are checked before any episode, in one line naming them
+    with pytest.raises(UsageError) as err:
+        evaluate.plan([cheetah], spec(sweeps=["body:nothing.mass=4:9:2"]))
+    assert "unknown body 'nothing'" in str(err.value) and "bthigh" in str(err.value)
+    with pytest.raises(UsageError, match="implausible value 0.01 for body:torso.mass"):
+        evaluate.plan([cheetah], spec(sweeps=["body:torso.mass=0.01,1"]))
+    with pytest.raises(UsageError, match="unknown parameter 'torso_length' of task HalfCheetah"):
+        evaluate.plan([cheetah], spec(sweeps=["torso_length=0.3,0.4"]))
+
+
+def test_a_paper_task_sweeps_addressed_parameters_under_consistent_physics(run, tmp_path):
+    units = evaluate.plan([run], spec(sweeps=["body:torso.mass=2,4"], episodes=1))
+    assert [dict(u.point) for u in units[::2]] == [
+        {"body:torso.mass": 2.0},
+        {"body:torso.mass": 4.0},
+    ]
+    ompo = load_run(write_run(tmp_path, "ompo", seeds=(0,), extra_config={"physics": "ompo"}))
+    assert dict(evaluate.plan([ompo], spec(sweeps=["mass_scale=1,2"]))[0].env)["physics"] == "ompo"
+    with pytest.raises(UsageError) as err:
+        evaluate.plan([ompo], spec(sweeps=["body:torso.mass=2,4"]))
+    assert "needs physics 'consistent'" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_users_own_xml_and_module_are_the_runs(tmp_path):
+    """The run's env-kwargs and env-module make its evaluation envs: a body only the run's XML
+    has is found, and the episodes run on the user's registered class."""
+    import user_env
+
+    xml = tmp_path / "bot.xml"
+    xml.write_text(user_env.XML.replace('name="ball"', 'name="puck"'))
+    config = {"env_module": "user_env", "env_kwargs": f"xml_file={xml}"}
+    bot = write_task_run(
+        tmp_path, "bot", user_env.ENV_ID, (4, 2), {"mass_scale": 1.0}, algo="sac", seeds=(0, 1),
+        extra_config=config,
+    )  # fmt: skip
+    s = spec(sweeps=["body:puck.mass=0.5,2"], holds=["joint:slide_x.damping=1"], max_steps=3)
+    units = evaluate.plan([bot], s)
+    assert dict(units[0].env) == {"physics": "consistent", "model_version": "v5", **config}
+    (table,) = evaluate.tables([bot], units, workers=1)
+    assert len(table) == 2 * 2 * 2 and set(table["length"]) == {3}
+    assert sorted(set(table["p_body:puck.mass"])) == [0.5, 2.0]
+    with pytest.raises(UsageError, match="unknown body 'ball'"):
+        evaluate.plan([bot], spec(sweeps=["body:ball.mass=0.5,2"]))
+    # another run of the same id on another XML is checked on its own model
+    plain = tmp_path / "plain.xml"
+    plain.write_text(user_env.XML)
+    other = write_task_run(
+        tmp_path, "other", user_env.ENV_ID, (4, 2), {"mass_scale": 1.0}, algo="adarl",
+        seeds=(0,), extra_config={**config, "env_kwargs": f"xml_file={plain}"},
+    )  # fmt: skip
+    with pytest.raises(UsageError, match="unknown body 'puck'"):
+        evaluate.plan([bot, other], s)
+    s = spec(episodes=1, max_steps=3)
+    path = evaluate.write_evaluation(evaluate.tables([bot], evaluate.plan([bot], s))[0],
+                                     tmp_path / "e.csv", s, bot)  # fmt: skip
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert (meta["task"], meta["env_module"], meta["env_kwargs"]) == (
+        user_env.ENV_ID,
+        "user_env",
+        f"xml_file={xml}",
+    )
+
+
+def test_a_task_with_fixed_dynamics_evaluates_nominal_only(tmp_path):
+    pendulum = write_task_run(tmp_path, "p", "Pendulum-v1", (3, 1), {}, algo="sac", seeds=(0,))
+    (table,) = evaluate.evaluate_runs([pendulum], spec(episodes=1, max_steps=4), workers=1)
+    assert len(table) == 1 and table["length"].iloc[0] == 4
+    with pytest.raises(UsageError, match=r"allowed: \(none: fixed dynamics\)"):
+        evaluate.plan([pendulum], spec(sweeps=["mass_scale=1,2"]))
+    with pytest.raises(UsageError, match="has fixed dynamics"):
+        evaluate.plan([pendulum], spec(dynamics="uniform"))

@@ -93,3 +93,74 @@ def test_point_labels_are_dynamics_specs_and_names_are_file_safe():
     assert grid.evaluation_name("nominal") == "nominal"
     assert grid.evaluation_name("nominal", step=5000) == "nominal_step-5000"
     assert "/" not in grid.evaluation_name("fixed:torso_length=0.5,foot_length=0.3")
+
+
+def test_addressed_names_are_split_from_their_values_at_the_last_equals_sign():
+    axis = grid.parse_axis("body:torso.mass=4:9:3")
+    assert (axis.name, axis.values) == ("body:torso.mass", (4.0, 6.5, 9.0))
+    assert grid.parse_axis("geom:floor.friction[1]=0.1,0.2").name == "geom:floor.friction[1]"
+    assert grid.parse_hold("joint:bthigh.damping=3") == ("joint:bthigh.damping", 3.0)
+    base, axes, holds = grid.split_dynamics(
+        "sweep:body:torso.mass=4:9:2,geom:floor.friction=0.5,mass_scale=0.5:1:2"
+    )
+    assert base == "nominal"
+    assert [(a.name, a.values) for a in axes] == [
+        ("body:torso.mass", (4.0, 9.0)),
+        ("mass_scale", (0.5, 1.0)),
+    ]
+    assert holds == [("geom:floor.friction", 0.5)]
+
+
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("body:torso.masss=1:2:2", "unknown attribute 'masss'"),
+        ("body:torso=1", "malformed parameter 'body:torso'"),
+        ("geom:floor.friction[3]=1", "bad index [3]"),
+        ("site:tip.x=1", "'site:tip.x' is not a parameter name"),
+        ("body:torso.mass=", "PARAM=VALUE"),
+    ],
+)
+def test_bad_addressed_names_are_one_line_errors(text, fragment):
+    with pytest.raises(UsageError) as err:
+        grid.parse_axis(text)
+    assert fragment in str(err.value) and "\n" not in str(err.value), str(err.value)
+
+
+def test_addressed_names_in_a_grid_go_through_the_tasks_check():
+    checked = []
+
+    def exists(name):
+        checked.append(name)
+        if "nothing" in name:
+            raise UsageError(f"unknown body 'nothing' in {name!r}")
+
+    axes = [grid.parse_axis("body:torso.mass=4:9:2")]
+    holds = [("geom:floor.friction", 0.5)]
+    points = grid.build_grid(axes, holds, ["mass_scale"], "HalfCheetah-v5", exists)
+    assert points == [
+        {"body:torso.mass": 4.0, "geom:floor.friction": 0.5},
+        {"body:torso.mass": 9.0, "geom:floor.friction": 0.5},
+    ]
+    assert checked == ["body:torso.mass", "geom:floor.friction"]
+    with pytest.raises(UsageError, match="unknown body 'nothing'"):
+        grid.build_grid([grid.parse_axis("body:nothing.mass=1,2")], [], [], "x", exists)
+    # friction without an index is its sliding component, friction[0]
+    with pytest.raises(UsageError, match=r"more than once \(as 'geom:floor.friction'\)"):
+        grid.build_grid(axes, [*holds, ("geom:floor.friction[0]", 0.4)], [], "x", exists)
+    grid.build_grid(axes, [*holds, ("geom:floor.friction[1]", 0.1)], [], "x", exists)
+    # a task without addressable elements (fixed dynamics) refuses them
+    with pytest.raises(UsageError) as err:
+        grid.build_grid(axes, [], [], "Pendulum-v1")
+    assert "unknown parameter 'body:torso.mass' of task Pendulum-v1" in str(err.value)
+    assert "(none: fixed dynamics)" in str(err.value)
+
+
+def test_addressed_names_in_file_names():
+    axes = [grid.parse_axis("body:torso.mass=4:9:3"), grid.parse_axis("geom:floor.friction[1]=1,2")]
+    name = grid.evaluation_name("nominal", axes, [("joint:bthigh.damping", 3.0)])
+    assert name == (
+        "sweep-body-torso.mass-4-9-3_sweep-geom-floor.friction.1-1-2-2_hold-joint-bthigh.damping-3"
+    )
+    label = grid.point_label("fixed", {"body:torso.mass": 4.0, "geom:floor.friction[1]": 1.0})
+    assert label == "fixed:body:torso.mass=4,geom:floor.friction[1]=1"

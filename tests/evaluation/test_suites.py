@@ -44,14 +44,154 @@ def test_m2td3_grids_are_linspace_10_per_dimension(key):
     assert suite.episodes == 30 and suite.base == "fixed"
 
 
-def test_rrls_grids_leave_the_upper_end_out():
-    suite = suites.get_suite("rrls-3d", "walker2d")
-    values = {a.name: a.values for a in suite.axes()}
-    np.testing.assert_allclose(values["thigh_mass"], np.arange(0.1, 6.0, (6.0 - 0.1) / 10))
-    assert len(values["thigh_mass"]) == 10 and max(values["thigh_mass"]) < 6.0
-    assert [r.param for r in suite.ranges] == [
-        r.param for r in suites.get_suite("m2td3-3d", "walker2d").ranges
-    ]
+def test_rrls_grids_include_both_ends():
+    """RRLS's rrls/evaluate.py:44-48 spaces its grids with np.arange(min, max, (max-min)/10),
+    which leaves max out of the set it evaluates: not copied, every rrls suite has both ends."""
+    for suite in suites.SUITES["rrls-3d"].values():
+        for axis, r in zip(suite.axes(), suite.ranges):
+            assert axis.values[0] == r.low and axis.values[-1] == r.high and len(axis.values) == 10
+    for task in ("hopper", "walker2d", "ant"):  # there RRLS's sets are M2TD3's
+        for dim in (1, 2, 3):
+            rrls, m2td3 = (
+                suites.get_suite(f"rrls-{dim}d", task),
+                suites.get_suite(f"m2td3-{dim}d", task),
+            )
+            assert rrls.axes() == m2td3.axes() and rrls.source != m2td3.source
+    # RRLS's own points stay available: arange's ten, the upper end left out
+    np.testing.assert_allclose(
+        suites.grid_values(0.1, 6.0, 10, "arange"), np.arange(0.1, 6.0, (6.0 - 0.1) / 10)
+    )
+
+
+# RRLS's uncertainty sets on Gymnasium tasks outside the paper's four, copied from SuReLI/RRLS at
+# commit 0c43dc981c0e892a604c596e2bc399df187a87ac: [ONE_DIM, TWO_DIM, THREE_DIM] of each
+# `*ParamsBound`, RRLS name -> [low, high], in RRLS's order.
+RRLS_SETS = {
+    "HalfCheetah-v5": [  # rrls/envs/half_cheetah.py:24-36
+        {"worldfriction": [0.1, 3.0]},  # :26
+        {"worldfriction": [0.1, 4.0], "torsomass": [0.1, 7.0]},  # :29-30
+        {
+            "worldfriction": [0.1, 4.0],
+            "torsomass": [0.1, 7.0],
+            "backthighmass": [0.1, 3.0],
+        },  # :33-35
+    ],
+    "InvertedPendulum-v5": [  # rrls/envs/pendulum.py:15-22 (no THREE_DIM)
+        {"polemass": [1.0, 31.0]},  # :17
+        {"polemass": [1.0, 31.0], "cartmass": [1.0, 11.0]},  # :20-21
+    ],
+    "HumanoidStandup-v5": [  # rrls/envs/humanoid.py:26-38
+        {"torsomass": [0.1, 16.0]},  # :28
+        {"torsomass": [0.1, 16.0], "rightfootmass": [0.1, 8.0]},  # :31-32
+        {
+            "torsomass": [0.1, 16.0],
+            "leftthighmass": [0.1, 5.0],
+            "rightfootmass": [0.1, 8.0],
+        },  # :35-37
+    ],
+}
+# What each name writes in RRLS's `_change_params`: `model.body_mass[i]`, or every geom's
+# sliding friction (`model.geom_friction[:, 0] = value`, half_cheetah.py:175).
+RRLS_WRITES = {
+    "HalfCheetah-v5": {
+        "worldfriction": "every geom",
+        "torsomass": 1,
+        "backthighmass": 2,
+    },  # :175-179
+    "InvertedPendulum-v5": {"cartmass": 1, "polemass": 2},  # pendulum.py:88, :90
+    "HumanoidStandup-v5": {
+        "torsomass": 1,
+        "rightfootmass": 6,
+        "leftthighmass": 7,
+    },  # humanoid.py:228, :243, :246
+}
+# RRLS's DEFAULT_PARAMS for those names (half_cheetah.py:13-15, pendulum.py:10-11,
+# humanoid.py:10, :15, :16).
+RRLS_DEFAULTS = {
+    "HalfCheetah-v5": {"worldfriction": 0.4, "torsomass": 6.25020920502092, "backthighmass": 1.5435146443514645},
+    "InvertedPendulum-v5": {"polemass": 10.47197551196598, "cartmass": 5.018591641363306},
+    "HumanoidStandup-v5": {"torsomass": 8.907462370478262, "rightfootmass": 1.7671458676442586, "leftthighmass": 4.751750928806242},
+}  # fmt: skip
+
+
+def gymnasium_model(task):
+    mujoco = pytest.importorskip("mujoco")
+    from adarl.envs import get_task
+
+    return mujoco.MjModel.from_xml_path(get_task(task).xml_path)
+
+
+def as_adarl(task, model, name, low, high):
+    """An RRLS parameter as adarl's, from what RRLS writes and Gymnasium's model alone: the body
+    at RRLS's index by name, world friction as friction_scale over the model's one friction."""
+    where = RRLS_WRITES[task][name]
+    if where == "every geom":
+        (friction,) = set(model.geom_friction[:, 0])
+        return "friction_scale", low / friction, high / friction
+    return f"body:{model.body(where).name}.mass", low, high
+
+
+@pytest.mark.parametrize("task", list(RRLS_SETS))
+def test_rrls_sets_of_gymnasium_tasks_are_rrls_values(task):
+    model = gymnasium_model(task)
+    for dim, bounds in enumerate(RRLS_SETS[task], start=1):
+        suite = suites.get_suite(f"rrls-{dim}d", task)
+        expected = [as_adarl(task, model, n, *lh) for n, lh in bounds.items()]
+        got = [(r.param, r.low, r.high) for r in suite.ranges]
+        assert [g[0] for g in got] == [e[0] for e in expected]
+        np.testing.assert_allclose([g[1:] for g in got], [e[1:] for e in expected], rtol=1e-12)
+        assert suite.points == 10 and suite.spacing == "linspace" and suite.base == "fixed"
+        assert "SuReLI/RRLS rrls/envs/" in suite.source and suite.source.endswith(
+            ("ONE_DIM", "TWO_DIM", "THREE_DIM")[dim - 1]
+        )
+    covering = {name for name, by_task in suites.SUITES.items() if task in by_task}
+    assert covering == {f"rrls-{d}d" for d in range(1, len(RRLS_SETS[task]) + 1)}
+
+
+def test_rrls_names_are_the_bodies_of_gymnasiums_models():
+    """RRLS addresses bodies by index; its defaults are Gymnasium's masses at those indices,
+    except InvertedPendulum's, which swap pole and cart (a defect: RRLS's 1-D pendulum set
+    leaves the cart at the pole's 5.02 kg). Our base is Gymnasium's robot (`fixed`)."""
+    for task, defaults in RRLS_DEFAULTS.items():
+        model = gymnasium_model(task)
+        for name, value in defaults.items():
+            where = RRLS_WRITES[task][name]
+            if where == "every geom":
+                assert set(model.geom_friction[:, 0]) == {value} and set(model.geom_condim) == {3}
+            elif task == "InvertedPendulum-v5":
+                other = {1: 2, 2: 1}[where]
+                assert model.body_mass[other] == pytest.approx(value, rel=1e-12)
+            else:
+                assert model.body_mass[where] == pytest.approx(value, rel=1e-12), (task, name)
+    from adarl.envs import parse_dynamics
+
+    fixed = parse_dynamics("fixed", "InvertedPendulum-v5")
+    assert not [p for p in fixed.centroid() if p.startswith("body:")]
+
+
+def test_gymnasium_task_names_and_models_for_suites(tmp_path):
+    assert suites.get_suite("rrls-2d", "gym:HalfCheetah-v5").task == "HalfCheetah-v5"
+    with pytest.raises(UsageError) as err:
+        suites.get_suite("rrls-3d", "InvertedPendulum-v5")
+    assert "allowed for InvertedPendulum-v5: rrls-1d, rrls-2d" in str(err.value)
+    with pytest.raises(UsageError, match="allowed for HalfCheetah-v4: none"):
+        suites.get_suite("rrls-1d", "HalfCheetah-v4")
+    pytest.importorskip("mujoco")
+    import synthetic_runs
+
+    from adarl.results.runs import load_run
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setitem(synthetic_runs.DIMS, "InvertedPendulum-v5", (4, 1))
+        patch.setitem(synthetic_runs.PARAMS, "InvertedPendulum-v5", {})
+        own = synthetic_runs.write_run(
+            tmp_path, "own", algo="sac", task="InvertedPendulum-v5", seeds=(0,),
+            extra_config={"env_kwargs": "xml_file=/somewhere/pendulum.xml"},
+        )  # fmt: skip
+    with pytest.raises(UsageError) as err:
+        suites.plan_suite([load_run(own)], "rrls-1d")
+    assert "defined on Gymnasium's InvertedPendulum-v5 model" in str(err.value)
+    assert "xml_file=/somewhere/pendulum.xml" in str(err.value) and "\n" not in str(err.value)
 
 
 @pytest.mark.parametrize(
