@@ -5,6 +5,7 @@ nominal, fixed or swept dynamics, and store them as `RUN_DIR/evaluations/<name>.
     adarl evaluate runs/hopper-adarl --sweep torso_length=0.2:0.6:9 --hold foot_length=0.39
     adarl evaluate sweep-out/ --dynamics fixed:torso_length=0.5 --episodes 20
     adarl evaluate runs/ --suite m2td3-3d                             # a named robustness suite
+    adarl evaluate runs/halfcheetah --sweep body:torso.mass=4:9:6     # an element of any model
 
 See docs/evaluation.md.
 """
@@ -35,14 +36,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--sweep", action="append", default=[], metavar="P=LO:HI:N",
-        help="sweep parameter P over N evenly spaced values (or P=V1,V2,…); repeat for a grid",
+        help="sweep parameter P over N evenly spaced values (or P=V1,V2,…); repeat for a grid. "
+        "P: a task parameter (adarl tasks TASK) or KIND:NAME.ATTR[i], e.g. body:torso.mass",
     )  # fmt: skip
     parser.add_argument(
         "--hold", action="append", default=[], metavar="P=V", help="hold parameter P at V"
     )
     parser.add_argument(
         "--suite", default=None, metavar="NAME",
-        help="a named robustness suite (m2td3-1d/2d/3d, rrls-1d/2d/3d, paper; docs/evaluation.md): "
+        help="a named robustness suite (m2td3-1d/2d/3d; rrls-1d/2d/3d, also on HalfCheetah-v5, "
+        "InvertedPendulum-v5, HumanoidStandup-v5; paper; docs/evaluation.md): "
         "its grid, base dynamics and episodes; reports worst-case and average return",
     )  # fmt: skip
     parser.add_argument(
