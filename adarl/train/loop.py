@@ -335,7 +335,10 @@ class Loop:
     def truncate(self, pre_checkpoint: bool) -> None:
         """The learner's truncation: first (`pre_checkpoint`, and if the config asks) a
         pre-truncation checkpoint, never of non-finite parameters; then the spectra and the
-        truncations.csv rows the learner returns."""
+        truncations.csv rows the learner returns. Weights gone non-finite since the last check
+        stop the run here (exit 3), before any SVD (`--on-divergence continue`: the cut leaves
+        a non-finite layer as it was, `adarl.lowrank.cut_layer`)."""
+        self.check_divergence()  # read-only: the numbers of a finite run do not change
         if pre_checkpoint and self.config.checkpoint_before_truncation:
             if self.learner.parameters_finite() and not self.watch.found:
                 self.save(phase=layout.PRE_TRUNCATION)
