@@ -43,10 +43,14 @@ elif not any(type(f).__name__ == "_RegisterAfterGymnasium" for f in _sys.meta_pa
     _sys.meta_path.insert(0, _RegisterAfterGymnasium())
 
 #: The Python API (adarl.api), imported on first use so that `import adarl` stays light.
-_API = {"train", "evaluate", "report", "load_policy", "register_env_fn", "Run"}
+_API = {"evaluate", "report", "load_policy", "register_env_fn", "Run"}
 
 
 def __getattr__(name):
+    if name == "train":  # the package adarl.train, which is callable: adarl.api.train
+        import importlib
+
+        return importlib.import_module("adarl.train")
     if name in _API:
         import adarl.api
 

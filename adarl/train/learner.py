@@ -20,6 +20,8 @@ from typing import Protocol
 
 import numpy as np
 
+from adarl.envs.contract import Task
+
 
 class Event(enum.Enum):
     """What is due at the step an `advance` ends at, in the order the loop does it."""
@@ -84,7 +86,9 @@ class Learner(Protocol):
     algo: str
     config: object  # the algorithm's config (`total_steps`, `*_every`, `eval_dynamics`, …)
     seeds: list[int]
-    envs: list  # one environment per seed
+    # one task per seed (adarl.envs.contract.Task); the loop reads each one's `dynamics_params`
+    # (train.csv's dynamics columns), `get_state` (checkpoints) and `close` (at the end)
+    envs: list[Task]
     rngs: list[np.random.Generator]  # one per seed; checkpoints hold their states
     env_options: dict  # `envs.make` keywords of its environments (evaluation too)
     train_columns: list[str]  # train.csv's columns
