@@ -35,7 +35,10 @@ def write_xml(folder) -> Path:
 
 
 class PointBot(MujocoEnv):
-    metadata = {"render_modes": ["human", "rgb_array", "depth_array", "rgbd_tuple"], "render_fps": 50}
+    metadata = {
+        "render_modes": ["human", "rgb_array", "depth_array", "rgbd_tuple"],
+        "render_fps": 50,
+    }
 
     def __init__(self, xml_file: str, **kwargs):
         obs = gymnasium.spaces.Box(-np.inf, np.inf, (4,), np.float64)

@@ -162,7 +162,11 @@ def test_tasks_adarl_cannot_train_are_one_line_errors(task, message):
 
 
 def test_a_gymnasium_id_takes_its_registered_time_limit():
-    assert get_task("Reacher-v5").max_episode_steps == gymnasium.spec("Reacher-v5").max_episode_steps == 50
+    assert (
+        get_task("Reacher-v5").max_episode_steps
+        == gymnasium.spec("Reacher-v5").max_episode_steps
+        == 50
+    )
     assert get_task("hopper").max_episode_steps == 1000
     env = make("Reacher-v5", "nominal", seed=0)
     env.reset()
