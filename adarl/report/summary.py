@@ -8,10 +8,11 @@ import shlex
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from adarl.report import behaviour
 from adarl.results import collect
-from adarl.results.runs import load_run
+from adarl.results.runs import config_value, load_run
 
 
 def duration(seconds: float) -> str:
@@ -62,6 +63,80 @@ def score_line(recent) -> str:
     )
 
 
+#: `behaviour.WORDS` said of several policies
+PLURAL = {"falls": "fall", "stands": "stand", "moves": "move", "stands or moves": "stand or move"}
+
+
+def recent_evaluations(run, k: int = LAST_K):
+    """The evaluations behind `score_line`'s return (`collect.last_k_scores`: each seed's last
+    `k` in eval.csv under `collect.score_dynamics`), one row each: `seed, step, return, length,
+    distance` (means over the evaluation's episodes; distance NaN where eval.csv has none) and
+    `max_length`, the run's time limit."""
+    from adarl.runs.layout import EVAL_CSV
+
+    log = collect.read_table(run.path / EVAL_CSV)
+    dynamics = collect.score_dynamics(log)
+    columns = ["seed", "step", "return", "length", "distance", "max_length"]
+    if dynamics is None:
+        return pd.DataFrame(columns=columns)
+    log = log[log["dynamics"] == dynamics]
+    if "distance" not in log:
+        log = log.assign(distance=np.nan)
+    if "length" not in log:
+        log = log.assign(length=np.nan)
+    per_eval = log.groupby(["seed", "step"], as_index=False)[["return", "length", "distance"]]
+    last = per_eval.mean().sort_values(["seed", "step"]).groupby("seed").tail(k)
+    limit = config_value(run.config, "max_episode_steps") or collect.MAX_EPISODE_STEPS
+    return last.assign(max_length=int(limit))[columns].reset_index(drop=True)
+
+
+def _span(values: np.ndarray, digits: int) -> str:
+    low, high = np.min(values), np.max(values)
+    text = f"{low:,.{digits}f}"
+    return text if f"{high:,.{digits}f}" == text else f"{text}–{high:,.{digits}f}"
+
+
+def evaluations_line(evaluations) -> str:
+    """What the policy did in the evaluations behind the headline return (`recent_evaluations`),
+    in `behaviour.describe`'s words (from each evaluation's mean episode length and distance),
+    the most frequent first (a tie: in `behaviour.WORDS`' order), with each group's episode
+    lengths and returns, and, for one seed, the steps of a group of one or two: `  in those 5
+    evaluations the policy stands or moves in 4 (1,000 of 1,000 steps, return 1,002.0–1,095.0)
+    and falls in 1 (step 150,000: 136 of 1,000 steps, return 363.3); ...` (a mean over standing
+    and falling is not a hopping policy's)."""
+    lengths = evaluations["length"].to_numpy(float)
+    if not np.isfinite(lengths).all():
+        return "  (eval.csv records no episode lengths: what the policy did is not known)"
+    limits = evaluations["max_length"].to_numpy(float)
+    distances = evaluations["distance"].to_numpy(float)
+    words = [behaviour.describe(n, m, d) for n, m, d in zip(lengths, limits, distances)]
+    seeds = evaluations["seed"].nunique()
+    several = seeds > 1
+    groups = []
+    found = [w for w in behaviour.WORDS if w in words]
+    for word in sorted(found, key=words.count, reverse=True):  # the most frequent first
+        chosen = np.array([w == word for w in words])
+        returns = evaluations["return"].to_numpy(float)[chosen]
+        facts = [f"{_span(lengths[chosen], 0)} of {int(limits.max()):,} steps"]
+        if np.isfinite(distances[chosen]).all():
+            facts.append(f"{_span(distances[chosen], 2)} m forward")
+        facts.append(f"return {_span(returns, 1)}")
+        steps = evaluations["step"].to_numpy()[chosen]
+        when = f"step {', '.join(f'{int(t):,}' for t in steps)}: " if len(steps) <= 2 else ""
+        verb = PLURAL[word] if several else word
+        groups.append(
+            f"{verb} in {int(chosen.sum())} ({when if not several else ''}{', '.join(facts)})"
+        )
+    count = len(evaluations)
+    per_seed = f" ({count // seeds} per seed)" if several and count % seeds == 0 else ""
+    subject = "the policies" if several else "the policy"
+    text = f"  in those {count} evaluation{'s' if count > 1 else ''}{per_seed} {subject} "
+    text += ", ".join(groups[:-1]) + (" and " if len(groups) > 1 else "") + groups[-1]
+    if not np.isfinite(distances).all():
+        text += "; forward distance not recorded during training (`adarl evaluate` records it)"
+    return text
+
+
 def behaviour_line(table) -> str:
     """What the final policies do (`collect.final_behaviour`: `seed, length, distance,
     max_length`): mean episode length out of the limit, forward distance, and a word per seed
@@ -97,8 +172,9 @@ def behaviour_line(table) -> str:
 def training_summary(
     run_dir: str | os.PathLike, wall_seconds: float, report_dir: Path | None = None
 ) -> str:
-    """A few lines: the nominal return over the last evaluations and at the final checkpoint
-    (mean ± std over seeds, per seed), what the final policies do (episode length, distance, one
+    """A few lines: the nominal return over the last evaluations (and what the policy did in
+    them: `evaluations_line`) and at the final checkpoint (mean ± std over seeds, per seed), what
+    the final policies do (episode length, distance, one
     word), AdaRL's final ranks, wall time, where the files are, and the next commands."""
     run = load_run(run_dir)
     path = shlex.quote(str(run.path))
@@ -110,6 +186,7 @@ def training_summary(
     recent, _ = collect.last_k_scores(run, LAST_K)
     if not recent.empty:
         lines.append(score_line(recent))
+        lines.append(evaluations_line(recent_evaluations(run, LAST_K)))
     scores, source = collect.final_scores(run)
     if not scores.empty:
         values = scores["score"].to_numpy(float)

@@ -27,8 +27,9 @@ def test_summary_of_an_adarl_run_has_returns_ranks_files_and_next_commands(tmp_p
         f"evaluation(s), steps {per_eval.columns[-5]:,}–10,000, 2 episode(s) each; seed 0: "
         f"{recent[0]:.1f}"
     )
-    assert lines[2].startswith(f"final checkpoint: {final.mean():.1f} ± {final.std(ddof=1):.1f}")
-    assert lines[3] == (
+    assert lines[2].startswith("  in those 15 evaluations (5 per seed) the policies stand or move")
+    assert lines[3].startswith(f"final checkpoint: {final.mean():.1f} ± {final.std(ddof=1):.1f}")
+    assert lines[4] == (
         "what the final policies do: episodes last 1,000 of 1,000 steps on average, forward "
         "distance not recorded (`adarl evaluate` records it): all 3 seeds stands or moves "
         "(full length; the forward distance would tell which)"
@@ -65,7 +66,7 @@ def test_summary_says_a_run_with_few_evaluations_and_a_falling_policy(tmp_path):
     lines = training_summary(run_dir, 3.0).splitlines()
     mean = log.groupby("step")["return"].mean().mean()  # all 3 evaluations: fewer than 5
     assert lines[1].startswith(f"nominal return: {mean:.1f} (mean of the last 3 evaluation(s)")
-    assert lines[3] == (
+    assert lines[4] == (
         "what the final policy does: episodes last 136 of 1,000 steps, forward distance not "
         "recorded (`adarl evaluate` records it): falls (episodes end early by termination)"
     )
@@ -106,3 +107,57 @@ def test_final_ranks_are_those_of_the_last_logged_step(tmp_path):
         table = collect.final_ranks(load_run(run_dir))
         got = table[table["layer"] == layer].sort_values("seed")["rank"].astype(int).tolist()
         assert got == final
+
+
+def _eval_csv(run_dir, evaluations, distance=False):
+    """eval.csv from (seed, step, [(return, length, distance), ...]) per evaluation."""
+    rows = [
+        {"step": step, "seed": seed, "dynamics": "nominal", "episode": e, "return": ret,
+         "length": length, **({"distance": dist} if distance else {})}
+        for seed, step, episodes in evaluations
+        for e, (ret, length, dist) in enumerate(episodes)
+    ]  # fmt: skip
+    pd.DataFrame(rows).to_csv(run_dir / "eval.csv", index=False)
+
+
+def test_the_headline_says_what_the_evaluations_behind_it_did(tmp_path):
+    """Issue 57's quickstart: a return of 906 averages four evaluations that stand (or hop) the
+    full 1,000 steps at ~1,000 with a last one that falls at 136 steps; the line under the
+    headline says so (the first evaluation, older than the last 5, is not in it)."""
+    run_dir = write_run(tmp_path, "run", algo="adarl", seeds=(0,), n_evals=6)
+    full = [(1000.0, 1004.0), (1090.0, 1100.0), (1040.0, 1060.0), (1010.0, 1030.0)]
+    evaluations = [(0, 25_000, [(50.0, 40, 0), (70.0, 60, 0)])]
+    evaluations += [(0, 50_000 + 25_000 * i, [(a, 1000, 0), (b, 1000, 0)]) for i, (a, b) in
+                    enumerate(full)]  # fmt: skip
+    evaluations.append((0, 150_000, [(360.0, 130, 0), (366.6, 142, 0)]))
+    _eval_csv(run_dir, evaluations)
+    lines = training_summary(run_dir, 60.0).splitlines()
+    # (1002 + 1095 + 1050 + 1020 + 363.3) / 5
+    assert lines[1].startswith("nominal return: 906.1 (mean of the last 5 evaluation(s), steps "
+                               "50,000–150,000")  # fmt: skip
+    assert lines[2] == (
+        "  in those 5 evaluations the policy stands or moves in 4 (1,000 of 1,000 steps, return "
+        "1,002.0–1,095.0) and falls in 1 (step 150,000: 136 of 1,000 steps, return 363.3); "
+        "forward distance not recorded during training (`adarl evaluate` records it)"
+    )
+
+
+def test_with_distances_the_line_says_stands_moves_or_falls_per_seed(tmp_path):
+    run_dir = write_run(tmp_path, "run", algo="sac", seeds=(0, 1), n_evals=2)
+    _eval_csv(
+        run_dir,
+        [
+            (0, 5000, [(900.0, 1000, 5.1)]),
+            (0, 10000, [(1000.0, 1000, 8.0)]),
+            (1, 5000, [(1000.0, 1000, 0.4)]),
+            (1, 10000, [(200.0, 90, 1.0)]),
+        ],
+        distance=True,
+    )
+    lines = training_summary(run_dir, 1.0).splitlines()
+    assert lines[2] == (
+        "  in those 4 evaluations (2 per seed) the policies move in 2 (1,000 of 1,000 steps, "
+        "5.10–8.00 m forward, return 900.0–1,000.0), fall in 1 (90 of 1,000 steps, 1.00 m "
+        "forward, return 200.0) and stand in 1 (1,000 of 1,000 steps, 0.40 m forward, return "
+        "1,000.0)"
+    )  # the most frequent first; a tie in the order falls, stands, moves
