@@ -48,6 +48,9 @@ NEEDED = {
 }
 EVALUATION_NEEDED = ("step", "seed", "dynamics", "episode", "return")  # evaluations/*.csv
 FINITE = frozenset({"step", "seed", "episode", "return", "new_rank"})
+#: what a run itself writes for a non-finite return (`CsvLog`: an episode of diverged weights,
+#: kept by --on-divergence continue): data, read as NaN (no return), not damage (issue 55)
+RUN_NON_FINITE = {"return": frozenset({"nan", "inf", "-inf"})}
 
 
 def needed_columns(path: Path) -> tuple[str, ...]:
@@ -60,7 +63,8 @@ def read_table(path: Path) -> pd.DataFrame:
     """A run CSV as a DataFrame, every column but the `TEXT_COLUMNS` as numbers (an empty cell:
     NaN); empty if the file is missing. A cell that is no number, a missing `needed_columns`
     column or a non-finite value in one of them (`FINITE`): a one-line UsageError naming the
-    file, its line and column."""
+    file, its line and column; except a `return` of `nan`, `inf` or `-inf` as the run writes
+    one (`RUN_NON_FINITE`), which is read as NaN: an episode without a finite return."""
     if not Path(path).is_file():
         return pd.DataFrame()
     df = pd.DataFrame(read_csv(path))
@@ -77,8 +81,14 @@ def read_table(path: Path) -> pd.DataFrame:
         if column in TEXT_COLUMNS:
             continue
         finite = column in needed and column in FINITE
+        written = RUN_NON_FINITE.get(column, frozenset()) if finite else frozenset()
+        if written and Path(path).parent.name == EVALUATIONS_DIR:
+            written = written | {""}  # `adarl evaluate` writes NaN as an empty cell (pandas)
+        if written:
+            df[column] = [np.nan if t in written else t for t in df[column]]
         for line, text in enumerate(df[column], start=2):  # line 1: the header
-            _check_number(text, path, column, line, finite)
+            if not (written and isinstance(text, float)):  # NaN: the run's own, read above
+                _check_number(text, path, column, line, finite)
         try:
             df[column] = pd.to_numeric(df[column].replace("", np.nan))
         except ValueError:  # pandas refuses "nan" or "inf" beside numbers: checked above
@@ -154,7 +164,13 @@ def final_scores(run: Run) -> tuple[pd.DataFrame, str]:
     episodes, note = final_nominal_episodes(run)
     if episodes.empty:
         return _scores(pd.Series(dtype=float)), note
-    return _scores(episodes.groupby("seed")["return"].mean()), note
+    return _scores(episodes.groupby("seed")["return"].agg(_mean_with_nan)), note
+
+
+def _mean_with_nan(values: pd.Series) -> float:
+    """The mean, NaN if any value is (an episode without a finite return, RUN_NON_FINITE): a
+    seed's score is not the mean of its finite episodes only."""
+    return float(values.mean(skipna=False))
 
 
 def final_behaviour(run: Run) -> pd.DataFrame:
@@ -216,11 +232,11 @@ def last_evaluations(log: pd.DataFrame, k: int) -> pd.DataFrame:
     if log.empty:
         return pd.DataFrame(columns=columns)
     per_eval = log.groupby(["seed", "step"], as_index=False).agg(
-        ret=("return", "mean"), episodes=("return", "size")
+        ret=("return", _mean_with_nan), episodes=("return", "size")
     )
     last = per_eval.sort_values(["seed", "step"]).groupby("seed").tail(k)
     out = last.groupby("seed", as_index=False).agg(
-        score=("ret", "mean"),
+        score=("ret", _mean_with_nan),
         evaluations=("ret", "size"),
         first_step=("step", "min"),
         last_step=("step", "max"),
