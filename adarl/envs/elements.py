@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from adarl.envs.params import is_addressed
 from adarl.errors import UsageError
 
 #: Generic parameters at their no-change values (gravity's default is the model's |g|).
@@ -95,9 +96,6 @@ class Address:
     @property
     def info(self) -> Attr:
         return ATTRS[self.kind][self.attr]
-
-
-from adarl.envs.params import is_addressed  # noqa: E402  (KIND:NAME.ATTR, maybe still wrong)
 
 
 def parse_address(name: str) -> Address:
@@ -331,22 +329,6 @@ class ElementEditor:
             else:
                 current[a.index] = value
                 setattr(element, a.attr, current)
-
-
-def check_value(name: str, value, default: float) -> float:
-    """An addressed value: a finite number of the attribute's sign; a one-line `UsageError`."""
-    info = parse_address(name).info
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        number = math.nan
-    ok = math.isfinite(number) and (number > info.lower if info.strict else number >= info.lower)
-    if not ok or type(value).__name__ in ("bool", "bool_"):
-        raise UsageError(
-            f"bad value {value!r} for {name}; allowed: a number {'>' if info.strict else '>='} "
-            f"{info.lower:g} (default {default:g})"
-        )
-    return number
 
 
 def _bake_total_mass(spec) -> None:

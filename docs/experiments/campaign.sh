@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The campaign's units in the order of issue 34 §3, one after another on both cores. Each sweep
+# The campaign's units, one sweep after another on both cores (order: below). Each sweep
 # resumes every unit from its newest checkpoint and skips finished ones, so running this again
 # (at the start of every session) continues where the last session stopped:
 #   git worktree add --detach /work/camp COMMIT     # the campaign's frozen code (campaign.md)
@@ -23,10 +23,17 @@ mkdir -p "$R"
 # from 2026-12-05 20:38 RNAC before the rest of Humanoid's Parseval units, so that every method
 # of Table 1 has a row first (campaign.md, "RNAC before Parseval's rest").
 # An entry FILE|FOLDER runs FILE into results/FOLDER, a sweep folder it shares with FOLDER's file.
-T1=$E/table1-ant-humanoid
-for entry in "$T1/table1-humanoid-sac.yaml|table1-humanoid" "$T1/table1-ant-rest.yaml" \
-  "$T1/table1-rnac.yaml" "$T1/table1-humanoid.yaml" \
-  "$E/paper-schedule-walker2d/paper-schedule-walker2d.yaml" fixed-rank-power; do
+# Table 1 finished on 2026-12-05 (every row committed). From 2026-12-07 (session 26: results/ went
+# with the machine again): claim 2 across tasks first (126 units of minutes, each finished inside a
+# session), then Walker2d's seeds 2-4, SAC seeds 0-1 and seeds 0-1 of the whole preset (AdaRL 0-1
+# again, for their controls' fork point), whose 3M-step units outlast a session (campaign.md,
+# "Session 26: short units first").
+C=$E/claim2-across-tasks
+W=$E/paper-schedule-walker2d
+for entry in "$C/claim2-across-tasks.yaml" "$C/width-beta.yaml|claim2-across-tasks" \
+  "$W/paper-schedule-walker2d-seeds-2-4.yaml|paper-schedule-walker2d" \
+  "$W/paper-schedule-walker2d-sac-0-1.yaml|paper-schedule-walker2d" \
+  "$W/paper-schedule-walker2d.yaml" fixed-rank-power; do
   sweep=${entry%%|*}
   name=$(basename "$sweep" .yaml)
   [[ $entry == *"|"* ]] && name=${entry#*|}

@@ -1,6 +1,8 @@
 """docs/experiments/campaign.sh, the campaign's driver, with a stand-in for Python that records
-each command and answers with a chosen exit status: the sweeps in issue 34's order, the robustness
-evaluation right after the Walker2d sweep of each run that lacks it, and a stop that ends it all."""
+each command and answers with a chosen exit status: the sweeps in the campaign's order (claim 2
+across tasks, then Walker2d's three sweep files, then fixed-rank-power), the robustness
+evaluation right after each Walker2d sweep file of each run that lacks it, and a stop that ends
+it all."""
 
 import os
 import subprocess
@@ -10,16 +12,22 @@ import pytest
 
 EXPERIMENTS = Path(__file__).parents[2] / "docs/experiments"
 SCRIPT = EXPERIMENTS / "campaign.sh"
+W = EXPERIMENTS / "paper-schedule-walker2d"
 SWEEPS = (
-    str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid-sac.yaml"),  # the primary pair first
-    str(EXPERIMENTS / "table1-ant-humanoid/table1-ant-rest.yaml"),
-    str(EXPERIMENTS / "table1-ant-humanoid/table1-rnac.yaml"),  # every method, then Parseval's rest
-    str(EXPERIMENTS / "table1-ant-humanoid/table1-humanoid.yaml"),
-    str(EXPERIMENTS / "paper-schedule-walker2d/paper-schedule-walker2d.yaml"),
+    str(EXPERIMENTS / "claim2-across-tasks/claim2-across-tasks.yaml"),  # units of minutes first
+    str(EXPERIMENTS / "claim2-across-tasks/width-beta.yaml"),
+    str(W / "paper-schedule-walker2d-seeds-2-4.yaml"),
+    str(W / "paper-schedule-walker2d-sac-0-1.yaml"),
+    str(W / "paper-schedule-walker2d.yaml"),
     "fixed-rank-power",
 )
-WALKER2D = SWEEPS[4]
-SHARED_FOLDER = {SWEEPS[0]: "table1-humanoid"}  # a sweep file run into another's sweep folder
+WALKER2D = SWEEPS[2:5]
+# a sweep file run into another's sweep folder
+SHARED_FOLDER = {
+    SWEEPS[1]: "claim2-across-tasks",
+    SWEEPS[2]: "paper-schedule-walker2d",
+    SWEEPS[3]: "paper-schedule-walker2d",
+}
 EVALUATED = ("adarl_rank_rule-cumulative", "sac")  # the control is not (paper-schedule-walker2d.md)
 
 
@@ -79,9 +87,10 @@ def test_the_sweeps_in_order_with_the_robustness_evaluation_after_walker2d(tmp_p
     runs = _runs(tmp_path)
     code, commands = _campaign(tmp_path)
     assert code == 0
+    after_each = [_robustness(runs)]  # AdaRL's five seeds, then SAC's (the stand-in writes none)
     assert commands == [
-        *(_sweep(tmp_path, s) for s in SWEEPS[:5]),
-        _robustness(runs),  # AdaRL's five seeds, then SAC's
+        *(_sweep(tmp_path, s) for s in SWEEPS[:2]),
+        *(c for s in WALKER2D for c in [_sweep(tmp_path, s), *after_each]),
         _sweep(tmp_path, SWEEPS[5]),
     ]
 
@@ -103,15 +112,18 @@ def test_no_walker2d_runs_nothing_to_evaluate(tmp_path):
 
 @pytest.mark.parametrize("code", [130, 2])
 def test_a_stopped_or_refused_sweep_ends_the_campaign(tmp_path, code):
-    assert _campaign(tmp_path, {WALKER2D: code}) == (
+    assert _campaign(tmp_path, {SWEEPS[0]: code}) == (code, [_sweep(tmp_path, SWEEPS[0])])
+    (tmp_path / "commands").unlink()
+    assert _campaign(tmp_path, {WALKER2D[0]: code}) == (
         code,
-        [_sweep(tmp_path, s) for s in SWEEPS[:5]],
+        [_sweep(tmp_path, s) for s in SWEEPS[:3]],
     )
 
 
-def test_the_walker2d_sweep_with_a_failed_unit_is_not_evaluated(tmp_path):
+def test_a_walker2d_sweep_with_a_failed_unit_is_not_evaluated(tmp_path):
     _runs(tmp_path)
-    code, commands = _campaign(tmp_path, {WALKER2D: 1})  # 1: some unit failed
+    fails = {s: 1 for s in WALKER2D}  # 1: some unit failed
+    code, commands = _campaign(tmp_path, fails)
     assert code == 0 and commands == [_sweep(tmp_path, s) for s in SWEEPS]
 
 
@@ -120,4 +132,5 @@ def test_a_stopped_evaluation_ends_the_campaign_and_a_failed_one_does_not(tmp_pa
     runs = _runs(tmp_path)
     status, commands = _campaign(tmp_path, {"evaluate": code})
     assert commands[-1] == (_sweep(tmp_path, SWEEPS[5]) if goes_on else _robustness(runs))
+    assert commands[-2] == (_robustness(runs) if goes_on else _sweep(tmp_path, WALKER2D[0]))
     assert status == (0 if goes_on else code)

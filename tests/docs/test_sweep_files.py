@@ -2,7 +2,9 @@
 every unit's config is the preset unit's with `seeds` narrowed to one of its seeds, a fork forks
 that seed's own parent, and the files' units together with the units that finished before them
 are exactly the preset's, seed by seed (docs/experiments/campaign.md). An algorithm whose seeds
-share one vmapped update (RNAC in the campaign's code) keeps the preset's units as they are."""
+share one vmapped update (RNAC in the campaign's code) keeps the preset's units as they are. A
+catch-all file (the whole preset, one seed per unit, run after the others: their units are done
+and skipped) trains what they leave."""
 
 import dataclasses
 from pathlib import Path
@@ -29,7 +31,26 @@ CAMPAIGN = {
             ("ant", "sac-parseval_parseval_coef-1e-05"),
         },
     ),
-    "paper-schedule-walker2d": (("paper-schedule-walker2d/paper-schedule-walker2d.yaml",), set()),
+    # session 26 (results/ lost): seeds 2-4, then SAC 0-1, then the whole preset for AdaRL 0-1
+    # (finished on 2026-12-06, run again for their controls' fork point) and the controls 0-1
+    "paper-schedule-walker2d": (
+        (
+            "paper-schedule-walker2d/paper-schedule-walker2d-seeds-2-4.yaml",
+            "paper-schedule-walker2d/paper-schedule-walker2d-sac-0-1.yaml",
+        ),
+        set(),
+    ),
+}
+#: preset -> its catch-all file, and the (label, seed) pairs only it trains
+CATCH_ALL = {
+    "paper-schedule-walker2d": (
+        "paper-schedule-walker2d/paper-schedule-walker2d.yaml",
+        {
+            (label, seed)
+            for label in ("adarl_rank_rule-cumulative", "adarl-control-eq5")
+            for seed in (0, 1)
+        },
+    ),
 }
 PRESET_UNITS = {"rnac"}  # in the preset's units of five (f7f5ab1's RNAC vmapped a run's seeds)
 
@@ -52,7 +73,13 @@ def test_each_sweep_file_trains_its_presets_units_one_seed_per_unit(preset):
                 got[key] = unit
     finished = {k for k in expected if (k[0], k[1]) in finished_before}
     assert len(finished) == 5 * len(finished_before)  # the preset's five seeds of each
-    assert set(got) == set(expected) - finished
+    catch_all, left = CATCH_ALL.get(preset, (None, set()))
+    left = {k for k in expected if (k[1], k[2]) in left}
+    assert set(got) == set(expected) - finished - left
+    if catch_all:
+        units = spec.load(str(EXPERIMENTS / catch_all)).units
+        assert set(_seed_units(units)) == set(expected)  # the whole preset, one seed per unit
+        got.update({k: u for k, u in _seed_units(units).items() if k in left})
     for key, unit in got.items():
         of_preset = expected[key]
         if unit.algo in PRESET_UNITS:  # the preset's unit itself
