@@ -239,8 +239,15 @@ METHOD_ORDER = registry.REPORT_ORDER
 
 
 def sort_tasks(tasks: Iterable[str]) -> list[str]:
-    """The paper's task order, then any other task alphabetically."""
-    return sorted(set(tasks), key=lambda t: (TASK_ORDER.index(t) if t in TASK_ORDER else 99, t))
+    """The paper's task order, then any other task (a Gymnasium id: `HalfCheetah-v5`,
+    `gym:Pendulum-v1`, a user's `ns/Robot-v0`) alphabetically, case and `gym:` aside."""
+
+    def key(task: str):
+        if task in TASK_ORDER:
+            return (TASK_ORDER.index(task), "", task)
+        return (len(TASK_ORDER), task.removeprefix("gym:").lower(), task)
+
+    return sorted(set(tasks), key=key)
 
 
 def sort_methods(methods: Iterable[str]) -> list[str]:

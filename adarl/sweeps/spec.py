@@ -142,7 +142,8 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
     all_fields = set().union(*fields.values())
 
     name = _name(doc.get("name", default_name), f"{where}: name")
-    tasks = _tasks(doc["tasks"], where, all_fields)
+    overrides = _overrides(doc.get("overrides"), f"{where}: overrides", all_fields)
+    tasks = _tasks(doc["tasks"], where, all_fields, overrides)
     seeds = _seeds(doc["seeds"], where)
     group = doc.get("seeds_per_unit", len(seeds))
     if not _is_int(group) or group < 1:
@@ -159,7 +160,6 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
         raise UsageError(f"{where}: evaluation must be a mapping of {', '.join(EVAL_KEYS)}")
     _check_keys(evaluation, EVAL_KEYS, f"{where}: evaluation")
     base.update(evaluation)
-    overrides = _overrides(doc.get("overrides"), f"{where}: overrides", all_fields)
     entries = _algo_entries(doc["algos"], where, fields, ALGOS)
     presets = _algo_presets()
     preset = doc.get("preset")
@@ -227,7 +227,7 @@ def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:
                 f"{here}: fork from {parent_label!r}: no such entry without a fork; "
                 f"entries: {', '.join(plain)}"
             )
-        parent_id = f"{unit.task}/{parent_label}/seeds-{_seed_text(unit.seeds)}"
+        parent_id = f"{unit.task.replace('/', '__')}/{parent_label}/seeds-{_seed_text(unit.seeds)}"
         parent = next((u for u in units if u.id == parent_id), None)
         if parent is None:
             raise UsageError(f"{here}: its parent {parent_id} is not in the sweep (same seeds?)")
@@ -254,8 +254,11 @@ def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:
 
 
 def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
+    from adarl.envs.tasks import task_of
+
     label, algo = entry["label"], entry["algo"]
-    uid = f"{task}/{label}/seeds-{_seed_text(seeds)}"
+    # a namespaced Gymnasium id (`ns/Name-v0`) is one folder level, as the paper's names are
+    uid = f"{task.replace('/', '__')}/{label}/seeds-{_seed_text(seeds)}"
     # as flag text, parsed by the field's type as `adarl train` parses its flags (a YAML 1.5e5
     # for an integer field is 150000 either way)
     flags = {"task": task, "seeds": ",".join(map(str, seeds)), "total_steps": str(total_steps)}
@@ -273,9 +276,10 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
     start = launch.New(algo, preset, flags)
     try:
         config = start.config()
-        envs.parse_dynamics(config.dynamics, task)
+        task_spec = task_of(config)  # made as the unit trains it: its env_kwargs, env_module
+        envs.parse_dynamics(config.dynamics, task_spec)
         for spec in config.eval_dynamics:
-            envs.parse_dynamics(spec, task)
+            envs.parse_dynamics(spec, task_spec)
     except UsageError as exc:
         raise UsageError(f"{where}: {uid}: {exc}") from None
     return Unit(
@@ -309,8 +313,12 @@ def _check_keys(mapping: dict, allowed, where: str) -> None:
             raise UsageError(f"{where}: unknown key {key!r}; allowed: {', '.join(allowed)}")
 
 
-def _tasks(value, where: str, all_fields: set[str]) -> dict[str, dict]:
+def _tasks(value, where: str, all_fields: set[str], overrides: dict) -> dict[str, dict]:
+    """The spec's tasks (the paper's four, any Gymnasium id), each with its overrides; a
+    Gymnasium id is made with the `env_kwargs` and `env_module` its overrides (else the file's
+    `overrides`) give, so that a user's registered id and XML are found."""
     from adarl.envs import get_task
+    from adarl.envs.tasks import TASKS
 
     if isinstance(value, str):
         value = [value]
@@ -327,12 +335,19 @@ def _tasks(value, where: str, all_fields: set[str]) -> dict[str, dict]:
     if not value:
         raise UsageError(f"{where}: tasks is empty, so the sweep has nothing to run")
     tasks = {}
-    for task, overrides in value.items():
+    for task, own in value.items():
+        own = _overrides(own, f"{where}: tasks: {task}", all_fields)
+        options = {}
+        if str(task).strip().lower() not in TASKS:
+            options = {
+                key: str(own.get(key, overrides.get(key, "")) or "")
+                for key in ("env_kwargs", "env_module")
+            }
         try:
-            name = get_task(str(task)).name
+            name = get_task(str(task), **options).name
         except UsageError as exc:
             raise UsageError(f"{where}: {exc}") from None
-        tasks[name] = _overrides(overrides, f"{where}: tasks: {name}", all_fields)
+        tasks[name] = own
     return tasks
 
 

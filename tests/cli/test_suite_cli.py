@@ -124,3 +124,44 @@ def test_a_ray_address_that_does_not_answer(tmp_path, capsys, tiny_suite):
     err = capsys.readouterr().err
     assert "cannot reach the Ray cluster at 127.0.0.1:1" in err and err.count("\n") == 1
     assert _files(tmp_path) == before
+
+
+def task_run(root, name, task, dims, algo):
+    """A synthetic run of a Gymnasium id (`synthetic_runs` knows the paper's four only)."""
+    import synthetic_runs
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setitem(synthetic_runs.DIMS, task, dims)
+        patch.setitem(synthetic_runs.PARAMS, task, {"mass_scale": 1.0})
+        return write_run(root, name, algo=algo, task=task, seeds=(0, 1))
+
+
+def test_rrls_suites_of_gymnasium_tasks_and_a_report_grouped_by_task(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    task_run(runs, "pendulum-sac", "InvertedPendulum-v5", (4, 1), "sac")
+    task_run(runs, "cheetah-sac", "HalfCheetah-v5", (17, 6), "sac")
+    write_run(runs, "hopper-sac", algo="sac", seeds=(0, 1))
+    argv = ["evaluate", str(runs), "--suite", "rrls-2d", "--points", "2", "--workers", "1", *FAST]
+    assert main(argv) == 0
+    table = pd.read_csv(runs / "pendulum-sac" / "evaluations" / "suite-rrls-2d.csv")
+    grid = sorted(set(zip(table["p_body:pole.mass"], table["p_body:cart.mass"])))
+    assert grid == [(1.0, 1.0), (1.0, 11.0), (31.0, 1.0), (31.0, 11.0)]  # RRLS's ends, both
+    cheetah = pd.read_csv(runs / "cheetah-sac" / "evaluations" / "suite-rrls-2d.csv")
+    assert sorted(set(cheetah["p_friction_scale"])) == [0.25, 10.0]  # world friction 0.1, 4.0
+    meta = json.loads((runs / "cheetah-sac" / "evaluations" / "suite-rrls-2d.json").read_text())
+    assert meta["suite_ranges"] == {"friction_scale": [0.25, 10.0], "body:torso.mass": [0.1, 7.0]}
+    assert "half_cheetah.py HalfCheetahParamsBound.TWO_DIM" in meta["suite_source"]
+    capsys.readouterr()
+    report = tmp_path / "report"
+    assert main(["report", str(runs), "--out", str(report), "--bootstrap-reps", "100"]) == 0
+    rows = pd.read_csv(report / "tables" / "suites.csv")
+    assert list(dict.fromkeys(rows["task"])) == ["hopper", "HalfCheetah-v5", "InvertedPendulum-v5"]
+    text = (report / "index.md").read_text()
+    assert "| InvertedPendulum-v5 | rrls-2d | sac | 2 | 4 × 1 |" in text
+    assert (report / "figures" / "suite_HalfCheetah-v5_rrls-2d_sac.png").is_file()
+    from adarl.results.runs import sort_tasks  # the order every report section uses
+
+    tasks = ["Reacher-v5", "gym:Pendulum-v1", "ant", "adarltest/Bot-v0", "hopper", "Ant-v5"]
+    assert sort_tasks(tasks) == [
+        "hopper", "ant", "adarltest/Bot-v0", "Ant-v5", "gym:Pendulum-v1", "Reacher-v5",
+    ]  # fmt: skip

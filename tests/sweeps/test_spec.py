@@ -283,3 +283,60 @@ def test_the_campaign_presets():
     ):
         header = spec.resolve(name).read_text().split("\nname:")[0]
         assert "seed-steps" in header and "Estimated ~" in header, name
+
+
+# ----------------------------------------------------------------------------- any task
+def test_a_gymnasium_id_is_a_task_of_a_sweep():
+    pytest.importorskip("mujoco")
+    sweep = _parse(tasks=["HalfCheetah-v5", "hopper"], dynamics="uniform:body:torso.mass=4..9")
+    assert [u.id for u in sweep.units] == ["HalfCheetah-v5/sac/seeds-0-1", "hopper/sac/seeds-0-1"]
+    flags = _flags(sweep.units[0])
+    assert flags["--task"] == "HalfCheetah-v5" and flags["--dynamics"].endswith("torso.mass=4..9")
+    assert sweep.units[0].config.max_episode_steps == 1000  # Gymnasium's registered limit
+    # every unit's schedule is checked on its own model: hopper has no bthigh
+    with pytest.raises(UsageError) as err:
+        _parse(tasks=["HalfCheetah-v5", "hopper"], dynamics="uniform:body:bthigh.mass=1..2")
+    message = str(err.value)
+    assert message.startswith("t.yaml: hopper/sac/seeds-0-1: unknown body 'bthigh'")
+    assert "\n" not in message
+    with pytest.raises(UsageError, match="t.yaml: unknown task 'Cheetah-v9'"):
+        _parse(tasks=["Cheetah-v9"])
+
+
+def test_a_users_id_and_xml_in_a_sweep(tmp_path):
+    """A user's registered id, made with the env-module and env-kwargs its task overrides give;
+    each unit's schedule is checked on its own XML (an entry may name another one)."""
+    pytest.importorskip("mujoco")
+    import user_env
+
+    puck, ball = tmp_path / "puck.xml", tmp_path / "ball.xml"
+    puck.write_text(user_env.XML.replace('name="ball"', 'name="puck"'))
+    ball.write_text(user_env.XML)
+    own = {"env_module": "user_env", "env_kwargs": f"xml_file={puck}"}
+    tasks = {user_env.ENV_ID: own}
+    # smoke sets max_episode_steps: without it the registry reads the registered time limit
+    # with the env-module but not the env-kwargs, which this env needs (adarl/algos/registry.py)
+    smoke = {"preset": "smoke"}
+    sweep = _parse(tasks=tasks, dynamics="uniform:body:puck.mass=0.5..2", **smoke)
+    (unit,) = sweep.units
+    assert unit.id == "adarltest__PointBot-v0/sac/seeds-0-1"  # the id's "/" is no folder level
+    flags = _flags(unit)
+    assert (flags["--task"], flags["--env-module"]) == (user_env.ENV_ID, "user_env")
+    assert flags["--env-kwargs"] == f"xml_file={puck}"
+    entries = ["sac", {"algo": "sac", "name": "ball", "env_kwargs": f"xml_file={ball}"}]
+    with pytest.raises(UsageError, match="ball/seeds-0-1: unknown body 'puck'"):
+        _parse(tasks=tasks, algos=entries, dynamics="uniform:body:puck.mass=0.5..2", **smoke)
+    forked = _parse(tasks=tasks, algos=ARMS, **{**FORKED, "seeds": "0-1"})
+    assert forked.units[1].fork_of == forked.units[0].id == "adarltest__PointBot-v0/a/seeds-0-1"
+    with pytest.raises(UsageError, match="t.yaml: unknown task 'adarltest/Nothing-v0'"):
+        _parse(tasks=[user_env.ENV_ID.replace("PointBot", "Nothing")], overrides=own)
+
+
+def test_the_device_backend_refuses_a_gymnasium_id_in_one_line():
+    pytest.importorskip("mujoco")
+    with pytest.raises(UsageError) as err:
+        _parse(tasks=["HalfCheetah-v5"], overrides={"backend": "device"})
+    assert str(err.value) == (
+        "t.yaml: HalfCheetah-v5/sac/seeds-0-1: unknown task for --backend device "
+        "'HalfCheetah-v5'; allowed: hopper, walker2d, ant, humanoid"
+    )
