@@ -251,3 +251,30 @@ def test_a_task_with_fixed_dynamics_evaluates_nominal_only(tmp_path):
         evaluate.plan([pendulum], spec(sweeps=["mass_scale=1,2"]))
     with pytest.raises(UsageError, match="has fixed dynamics"):
         evaluate.plan([pendulum], spec(dynamics="uniform"))
+
+
+V5 = [
+    "Ant-v5", "HalfCheetah-v5", "Hopper-v5", "Humanoid-v5", "HumanoidStandup-v5",
+    "InvertedDoublePendulum-v5", "InvertedPendulum-v5", "Pusher-v5", "Reacher-v5", "Swimmer-v5",
+    "Walker2d-v5",
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("gym_id", V5)
+def test_every_gymnasium_mujoco_task_evaluates_on_a_grid(tmp_path, gym_id):
+    """A generic and an addressed parameter (the model's first body's mass, read with MuJoCo)."""
+    import gymnasium
+    import mujoco
+
+    env = gymnasium.make(gym_id)
+    model, dims = env.unwrapped.model, (env.observation_space.shape[0], env.action_space.shape[0])
+    env.close()
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1)
+    mass = float(model.body_mass[1])
+    run = write_task_run(tmp_path, "r", gym_id, dims, {"mass_scale": 1.0}, algo="sac", seeds=(0,))
+    s = spec(sweeps=[f"body:{body}.mass={mass / 2:g},{mass * 2:g}"], holds=["damping_scale=2"],
+             episodes=1, max_steps=3)  # fmt: skip
+    (table,) = evaluate.evaluate_runs([run], s, workers=1)
+    assert list(table[f"p_body:{body}.mass"]) == [float(f"{mass / 2:g}"), float(f"{mass * 2:g}")]
+    assert set(table["p_damping_scale"]) == {2.0} and (table["length"] <= 3).all()
+    assert np.isfinite(table["return"]).all()
