@@ -141,6 +141,7 @@ def check_writable_dir(path: str | os.PathLike, what: str = "--out") -> None:
     """A one-line UsageError unless `path` is a writable folder or can be created as one
     (leaves nothing behind: see `probe_writable`)."""
     path = Path(path)
+    check_utf8_name(path, what)
     kind = existing_kind(path)
     if kind is not None and kind != "a folder":
         what_it_is = "a file" if kind == "a regular file" else kind
@@ -153,10 +154,26 @@ def check_writable_file(path: str | os.PathLike, what: str = "--out") -> None:
     absent, or a regular file (a device, FIFO or socket there is refused: the atomic write
     would replace it)."""
     path = Path(path)
+    check_utf8_name(path, what)
     if existing_kind(path) == "a folder":
         raise UsageError(f"{what} {path} is a folder; give a file name")
     refuse_special(path, what)
     _check_creatable(path, path.parent, what)
+
+
+def check_utf8_name(path: str | os.PathLike, what: str = "--out") -> None:
+    """A one-line UsageError if `path` holds bytes that are not UTF-8 (Python keeps them as
+    surrogates): adarl writes its output paths into UTF-8 files (config.yaml, a report's
+    index.md), which cannot hold them."""
+    raw = os.fsencode(path)
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        shown = raw.decode("utf-8", errors="backslashreplace")
+        raise UsageError(
+            f"{what} {shown} is not a UTF-8 name (byte 0x{raw[exc.start]:02x} at offset "
+            f"{exc.start}); allowed: a name in UTF-8, which adarl's files can record"
+        ) from None
 
 
 def existing_kind(path: str | os.PathLike) -> str | None:

@@ -220,9 +220,35 @@ class SACConfig(RunConfig):
             check_choice("physics for --backend device", self.physics, ("consistent",))
         check_choice("model version for --backend device", self.model_version, ("v5",))
         check_choice("algo for --backend device", self.algo, DEVICE_ALGOS)
+        check_device_solver(self.device_solver)
         from adarl.device.tasks import solver_caps
 
         solver_caps(self.device_solver)
+
+
+#: the most iterations `--device-solver` takes, each (MuJoCo's defaults: 100 and 50)
+MAX_SOLVER_ITERATIONS = 10_000
+
+
+def check_device_solver(value: str) -> None:
+    """`--device-solver` is "xml" or "I,L", each an ASCII integer from 1 to
+    `MAX_SOLVER_ITERATIONS` (`str.isdigit` also takes "²", which `int` refuses, and MuJoCo's C
+    int no 20-digit number); else a one-line UsageError (issue 55)."""
+    parts = str(value).split(",")
+    if value == "xml" or (
+        len(parts) == 2
+        and all(
+            p.strip().isascii()
+            and p.strip().isdigit()
+            and 1 <= int(p) <= MAX_SOLVER_ITERATIONS
+            for p in parts
+        )
+    ):
+        return
+    raise UsageError(
+        f"device-solver must be 'xml' or 'ITERATIONS,LS_ITERATIONS' (integers from 1 to "
+        f"{MAX_SOLVER_ITERATIONS:,}, e.g. 100,4), got {value!r}"
+    )
 
 
 PRESETS: dict[str, dict] = {

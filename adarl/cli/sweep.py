@@ -164,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out) if args.out else Path("sweeps") / sweep.name
     check_writable_dir(out)  # a dry run too: it promises what a real one would do
+    runner.check_not_a_run_folder(out)
     manifest.check_compatible(manifest.read(out), sweep, out)
     runner.check_existing_runs(sweep, out)
     train_extra = tracking_flags(args, sweep.name)

@@ -42,7 +42,7 @@ from pathlib import Path
 from adarl.errors import UsageError
 from adarl.files import read_json
 from adarl.report.summary import duration
-from adarl.runs.layout import CONFIG_FILE, DONE_FILE, TRAIN_CSV
+from adarl.runs.layout import CHECKPOINT_DIR, CONFIG_FILE, DONE_FILE, TRAIN_CSV
 from adarl.sweeps import manifest as manifest_mod
 from adarl.sweeps.job import run_job, thread_env
 from adarl.sweeps.spec import Sweep, Unit
@@ -103,6 +103,24 @@ def plan_text(sweep: Sweep, out: Path, where: str) -> str:
     forks = " (a fork's from its fork point on)" if any(u.fork_of for u in sweep.units) else ""
     lines.append(f"total: {steps:,} environment steps over all seeds{forks}")
     return "\n".join(lines)
+
+
+def check_not_a_run_folder(out: Path) -> None:
+    """A one-line UsageError if the sweep's `out` is a run folder (holds config.yaml) or lies
+    inside one: the sweep would write its manifest and unit folders into that run (as `train`
+    refuses a non-empty --out and `report` a folder that is not a report). A folder above
+    `out` counts as a run only with DONE or checkpoints/ beside its config.yaml (a project's
+    own config.yaml is not a run)."""
+    out = Path(out)
+    for folder in (out, *Path(os.path.abspath(out)).parents):
+        trained = (folder / DONE_FILE).exists() or (folder / CHECKPOINT_DIR).is_dir()
+        if (folder / CONFIG_FILE).is_file() and (folder == out or trained):
+            state = "a finished run" if (folder / DONE_FILE).exists() else "a run"
+            where = "is the folder of" if folder == out else f"lies inside {folder}, the folder of"
+            raise UsageError(
+                f"--out {out} {where} {state} (it holds {CONFIG_FILE}); a sweep writes its "
+                "manifest and run folders into --out: choose a new folder or an existing sweep's"
+            )
 
 
 def check_existing_runs(sweep: Sweep, out: Path) -> None:
