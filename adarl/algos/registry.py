@@ -155,6 +155,8 @@ ALGORITHMS: dict[str, Algorithm] = {
 ALGOS: tuple[str, ...] = tuple(ALGORITHMS)
 # fields added to the configs after run folders had been written without them, with the value
 # those runs had: a config.yaml that lacks one keeps that value on resume (`runs.folder`)
+#: The key of `Algorithm.task_defaults` for every task outside the paper's four.
+OTHER_TASKS = "*"
 ADDED_FIELDS = {"backend": "host", "device_solver": "xml", "env_kwargs": "", "env_module": ""}
 
 
@@ -211,19 +213,29 @@ def resolve_config(
     parsed = {}
     for name, value in dict(flags).items():
         if name not in hints:
+            from adarl.device import NOT_ON_DEVICE  # why an algorithm has no --backend
+
+            if name == "backend" and algo in NOT_ON_DEVICE:
+                raise UsageError(NOT_ON_DEVICE[algo])
             raise UsageError(f"--{name.replace('_', '-')} does not apply to --algo {algo}")
         parsed[name] = field_value(name, value, type_text(hints[name]))
     task = parsed.get("task", entry.presets[preset].get("task", cls.task))
-    values.update(entry.task_defaults.get(task, {}))
+    values.update(entry.task_defaults.get(task, entry.task_defaults.get(OTHER_TASKS, {})))
     if "max_episode_steps" not in parsed and "max_episode_steps" not in entry.presets[preset]:
         from adarl.envs.tasks import registered_time_limit
 
-        module = str(parsed.get("env_module", entry.presets[preset].get("env_module", "")))
-        limit = registered_time_limit(str(task), module)  # a Gymnasium id's own (Reacher: 50)
+        given = {**entry.presets[preset], **parsed}
+        limit = registered_time_limit(  # a Gymnasium id's own (Reacher: 50)
+            str(task), str(given.get("env_module", "")), given.get("env_kwargs", "")
+        )
         if limit:
             values["max_episode_steps"] = limit
     values.update(entry.presets[preset])
     values.update(parsed)
+    if values.get("backend") == "device" and "device_solver" not in values:
+        from adarl.device.tasks import default_solver  # 100,4 where it is C's physics
+
+        values["device_solver"] = default_solver(str(task))
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
     config = cls(**values)
     return config.validate() if check else config

@@ -34,10 +34,10 @@ BACKENDS = ("host", "device")
 # and Humanoid's physics differ from MuJoCo C's, docs/envs.md "Device physics") under every
 # dynamics schedule (Gymnasium's own `default`; a schedule's models, compiled as the
 # host's `consistent` physics compiles them, per episode for `paper`, `ompo`, `uniform`), every
-# algorithm whose networks are plain or bottleneck layers
+# algorithm of the SAC family (RNAC is not: adarl.device.NOT_ON_DEVICE)
 DEVICE_TASKS = ("hopper", "walker2d", "ant", "humanoid")
 DEVICE_DYNAMICS = ("default", "nominal", "fixed", "paper", "ompo", "uniform")
-DEVICE_ALGOS = ("sac", "adarl", "adarl-control", "sac-fixed-rank", "sac-parseval")
+DEVICE_ALGOS = ("sac", "adarl", "adarl-control", "sac-fixed-rank", "sac-parseval", "sac-sparse")
 
 # AdaRL's budget where the user sets none (no --total-steps / --truncate-every, flag or preset):
 # the paper's d_t (10⁶ gradient steps, 0.7·10⁶ on Walker2d) and the `paper-table1` step budgets,
@@ -47,6 +47,9 @@ ADARL_TASK_DEFAULTS: dict[str, dict] = {
     "walker2d": {"total_steps": 3_000_000, "truncate_every": 700_000},
     "ant": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
     "humanoid": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
+    # any other task (registry.OTHER_TASKS): the paper's budget/d_t of Ant and Humanoid, 5, on
+    # 1M steps: four cuts, 200k updates apart
+    "*": {"total_steps": 1_000_000, "truncate_every": 200_000},
 }
 
 
@@ -63,7 +66,8 @@ class SACConfig(RunConfig):
     # the device task's constraint solver: "xml" (the task XML's, the physics of docs/envs.md) or
     # "ITERATIONS,LS_ITERATIONS" capped for speed (100,4 matched MuJoCo C as xml does; 1,4, as
     # MuJoCo Playground's MJX models, is a different physics); runs of different solvers never
-    # share a report
+    # share a report. With --backend device and none given: 100,4 for hopper and walker2d (their
+    # float64 comparison against MuJoCo C passes capped), xml for ant and humanoid
     device_solver: str = "xml"
     # --- SAC (paper appendix / Spinning Up)
     hidden: tuple[int, ...] = (64, 64)  # hidden layer widths of actor and critics

@@ -306,7 +306,7 @@ def _adarl_budget(task: str) -> str:
     from adarl.algos import registry, schedule
 
     adarl = registry.get("adarl")
-    budget = dict(adarl.task_defaults.get(task, {}))  # a Gymnasium id: the config's defaults
+    budget = dict(adarl.task_defaults.get(task, adarl.task_defaults.get(registry.OTHER_TASKS, {})))
     config = adarl.config_class(**adarl.defaults, task=task, **budget)
     budget.setdefault("total_steps", config.total_steps)
     budget.setdefault("truncate_every", config.truncate_every)

@@ -137,7 +137,8 @@ def add_config_fields(parser: argparse.ArgumentParser, algo: str) -> None:
         meaning = meanings.get(f.name, "")
         default = _value_text(getattr(defaults, f.name))
         per_task = [
-            f"on {task}: {_value_text(fields[f.name])}"
+            f"on {'other tasks' if task == registry.OTHER_TASKS else task}: "
+            f"{_value_text(fields[f.name])}"
             for task, fields in entry.task_defaults.items()
             if f.name in fields
         ]

@@ -21,7 +21,8 @@ the compiled model's own:
                           (the half-length) stretches the segment about its centre; bodies
                           attached elsewhere do not move
   joint:NAME.damping      damping (N m s/rad or N s/m); .stiffness, .armature, .frictionloss too
-  actuator:NAME.gear      the gear (first component; actuator strength)
+  actuator:NAME.gear      the gear (first component; actuator strength); NAME may also be the
+                          joint an unnamed motor drives
 Every value is written into an `mujoco.MjSpec` of the XML absolutely, from a snapshot of the XML's
 values, and the model recompiled, so masses, inertias and bounding volumes follow the edit and a
 parameter at its default leaves the model exactly as Gymnasium's.
@@ -32,6 +33,7 @@ from __future__ import annotations
 import functools
 import math
 import re
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -117,10 +119,27 @@ def parse_address(name: str) -> Address:
     return Address(kind, element, attr, i)
 
 
+@functools.lru_cache(maxsize=1)
+def quiet_settotalmass() -> None:
+    """Drop MuJoCo's deprecation warning for `settotalmass` (Gymnasium's HalfCheetah XML sets it;
+    adarl replaces it by the masses it stands for, `_bake_total_mass`), printed at every load
+    otherwise; every other warning goes where it went."""
+    import mujoco
+
+    previous = mujoco.get_mju_user_warning()
+
+    def warn(message: str) -> None:
+        if "settotalmass" not in message:
+            previous(message) if previous else print(f"WARNING: {message}", file=sys.stderr)
+
+    mujoco.set_mju_user_warning(warn)
+
+
 @functools.lru_cache(maxsize=32)
 def _model(xml_path: str):
     import mujoco
 
+    quiet_settotalmass()
     return mujoco.MjModel.from_xml_path(xml_path)
 
 
@@ -148,7 +167,7 @@ def address_default(xml_path: str, name: str) -> float:
     a = parse_address(name)
     model = _model(xml_path)
     try:
-        element = getattr(model, a.kind)(a.element)
+        element = _by_name_or_joint(model, a)
     except KeyError:
         names = element_names(xml_path)[a.kind]
         shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
@@ -170,6 +189,28 @@ def address_default(xml_path: str, name: str) -> float:
         }
         return float(field[a.attr])
     return float(model.actuator_gear[i, 0])
+
+
+def _by_name_or_joint(model, a: Address):
+    """The element `a` names; an actuator may also be named by the joint it drives (Gymnasium's
+    Ant, Hopper, Walker2d, Reacher, Swimmer and Pusher leave their motors unnamed)."""
+    import mujoco
+
+    try:
+        return getattr(model, a.kind)(a.element)
+    except KeyError:
+        if a.kind != "actuator":
+            raise
+        joint = model.joint(a.element).id  # KeyError: neither an actuator nor a joint
+        found = [
+            i
+            for i in range(model.nu)
+            if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT
+            and model.actuator_trnid[i, 0] == joint
+        ]
+        if len(found) != 1:
+            raise KeyError(a.element) from None
+        return model.actuator(found[0])
 
 
 def model_gravity(xml_path: str) -> float:
@@ -289,6 +330,9 @@ class ElementEditor:
 
     def _write(self, a: Address, value: float) -> None:
         element = getattr(self.spec, a.kind)(a.element)
+        if element is None and a.kind == "actuator":  # named by the joint it drives
+            driving = [x for x in self.spec.actuators if x.target == a.element]
+            element = driving[0] if len(driving) == 1 else None
         if element is None:
             raise UsageError(f"unknown {a.kind} {a.element!r} in {self.xml_path}")
         if a.kind == "body":

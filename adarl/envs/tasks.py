@@ -289,6 +289,9 @@ def make_raw_env(spec: TaskSpec, render_mode: str | None = None):
     import gymnasium
     from gymnasium.envs.registration import load_env_creator
 
+    from adarl.envs.elements import quiet_settotalmass
+
+    quiet_settotalmass()
     import_env_module(spec.env_module)
     gym_spec = gymnasium.spec(spec.gym_id)
     kwargs = dict(gym_spec.kwargs) | dict(spec.env_kwargs)
@@ -305,6 +308,11 @@ def make_raw_env(spec: TaskSpec, render_mode: str | None = None):
         raise UsageError(
             f"env {spec.gym_id!r} does not take env-kwargs {dict(spec.env_kwargs)}: {exc}"
         ) from None
+    except UsageError:
+        raise
+    except Exception as exc:  # a missing dependency, a bad XML: the env's own message, one line
+        message = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        raise UsageError(f"cannot make env {spec.gym_id!r} ({message})") from None
     return getattr(raw, "unwrapped", raw)
 
 
@@ -379,13 +387,12 @@ def check_spaces(name: str, obs_space, act_space) -> tuple[int, int]:
     return int(obs_space.shape[0]), int(act_space.shape[0])
 
 
-def registered_time_limit(task: str, env_module: str = "") -> int | None:
+def registered_time_limit(task: str, env_module: str = "", env_kwargs="") -> int | None:
     """The registered `max_episode_steps` of a task outside the paper's four (None for the
-    paper's, whose limit is 1000, or an id without one); errors as `get_task`."""
+    paper's, whose limit is 1000); errors as `get_task`."""
     if str(task).strip().lower() in TASKS:
         return None
-    spec = get_task(task, env_module=env_module) if env_module else get_task(task)
-    return spec.max_episode_steps
+    return get_task(task, env_kwargs=env_kwargs or "", env_module=env_module).max_episode_steps
 
 
 def task_of(config) -> TaskSpec:

@@ -31,9 +31,10 @@ def test_protocol_roles_come_from_the_registry():
 # (adarl 2c09826): each class's defaults, and per case the fields that differ from them
 RESOLVED = json.loads((Path(__file__).parents[1] / "data" / "resolved-configs.json").read_text())
 # fields added since, with the value every config had before them
+TASK_FIELDS = {"env_kwargs": "", "env_module": ""}  # issue 53: any Gymnasium id
 ADDED = {
-    "RNACConfig": {"algo": "rnac", "max_episode_steps": 1000},
-    "SACConfig": {"backend": "host", "device_solver": "xml"},
+    "RNACConfig": {"algo": "rnac", "max_episode_steps": 1000, **TASK_FIELDS},
+    "SACConfig": {"backend": "host", "device_solver": "xml", **TASK_FIELDS},
 }
 # fields retired since (registry.Algorithm.retired_fields), with the value every config had
 RETIRED = {"SACConfig": {"lanes": 0}}
