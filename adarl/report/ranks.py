@@ -18,11 +18,12 @@ from adarl.runs.layout import TRUNCATIONS_CSV
 
 
 def intrinsic_rank(run: Run) -> int | None:
-    """2·d_a+1 of the run's task (from `adarl.envs`, else the config), None if unknown."""
+    """2·d_a+1 of the run's task (from `adarl.envs`, made as the run made it: its env_kwargs and
+    env_module; else the config), None if unknown."""
     try:
-        from adarl.envs import get_task
+        from adarl.envs.tasks import task_of
 
-        return int(get_task(run.task).intrinsic_rank)
+        return int(task_of({**dict(run.config), "task": run.task}).intrinsic_rank)
     except (ImportError, AttributeError, KeyError, TypeError, UsageError):
         value = config_value(run.config, "intrinsic_rank")
         return None if value is None else int(value)
