@@ -3,16 +3,21 @@
 # resumes every unit from its newest checkpoint and skips finished ones, so running this again
 # (at the start of every session) continues where the last session stopped:
 #   git worktree add --detach /work/camp COMMIT     # the campaign's frozen code (campaign.md)
+#   git worktree add --detach /work/camp2 COMMIT2   # claim 2 across tasks' frozen code
 #   ../shared/tools/background /work/main/results/campaign.log bash /work/main/docs/experiments/campaign.sh > /work/main/results/campaign.pid
 # and, before a session ends, stop it without losing a step (each unit writes a checkpoint
 # where it stops, and the sweep exits 130, which ends this script too):
 #   kill -TERM -- -$(cat /work/main/results/campaign.pid)
-# (CAMPAIGN_CODE, CAMPAIGN_PYTHON and CAMPAIGN_RESULTS replace the three paths below in its test.)
+# (CAMPAIGN_CODE, CAMPAIGN_CODE2, CAMPAIGN_PYTHON and CAMPAIGN_RESULTS replace the paths below in
+# its test.)
 # Bash reads a script as it runs it: replace this file (write a copy, then mv), never edit it in
 # place while the campaign runs.
 set -u
 E=$(cd "$(dirname "$0")" && pwd)
-cd "${CAMPAIGN_CODE:-/work/camp}"  # python -m puts the working folder first: the frozen code runs
+CODE=${CAMPAIGN_CODE:-/work/camp}  # python -m puts the working folder first: the frozen code runs
+# claim 2 across tasks needs the tasks beyond the paper's four: its own frozen code (9e8135c,
+# campaign.md), Walker2d's units keep theirs
+CODE2=${CAMPAIGN_CODE2:-/work/camp2}
 PY=${CAMPAIGN_PYTHON:-/work/main/.venv/bin/python}
 R=${CAMPAIGN_RESULTS:-/work/main/results}
 mkdir -p "$R"
@@ -38,6 +43,7 @@ for entry in "$C/claim2-across-tasks.yaml" "$C/width-beta.yaml|claim2-across-tas
   name=$(basename "$sweep" .yaml)
   [[ $entry == *"|"* ]] && name=${entry#*|}
   echo "== $(date -u +%FT%TZ) $sweep"
+  if [ "$name" = claim2-across-tasks ]; then cd "$CODE2" || exit 2; else cd "$CODE" || exit 2; fi
   $PY -m adarl.cli.main sweep "$sweep" --out "$R/$name" --workers 2 --no-progress
   code=$?
   echo "== $(date -u +%FT%TZ) $(basename "$sweep" .yaml) exited $code"

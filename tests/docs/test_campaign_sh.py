@@ -35,11 +35,12 @@ def _campaign(tmp_path: Path, exits: dict[str, int] | None = None) -> tuple[int,
     """Run the script; the stand-in exits with exits[word] when a word of its command is a key
     (a sweep, or `evaluate`), else 0. Returns the exit status and the commands, in order."""
     log = tmp_path / "commands"
+    (tmp_path / "code2").mkdir(exist_ok=True)
     cases = "".join(f'    *" {word} "*) code={code} ;;\n' for word, code in (exits or {}).items())
     python = tmp_path / "python"
     python.write_text(
         "#!/usr/bin/env bash\n"
-        f'echo "$*" >> {log}\n'
+        f'echo "$(basename "$PWD") $*" >> {log}\n'
         "code=0\n"
         f'case " $* " in\n{cases}esac\n'
         "exit $code\n"
@@ -48,17 +49,25 @@ def _campaign(tmp_path: Path, exits: dict[str, int] | None = None) -> tuple[int,
     env = {
         **os.environ,
         "CAMPAIGN_CODE": str(tmp_path),
+        "CAMPAIGN_CODE2": str(tmp_path / "code2"),
         "CAMPAIGN_PYTHON": str(python),
         "CAMPAIGN_RESULTS": str(tmp_path / "results"),
     }
     done = subprocess.run(["bash", str(SCRIPT)], env=env, capture_output=True, text=True)
     commands = log.read_text().splitlines() if log.exists() else []
-    return done.returncode, [c.removeprefix("-m adarl.cli.main ") for c in commands]
+    # each command as `where: command` (code2: the frozen code of claim 2 across tasks)
+    where = {tmp_path.name: "code", "code2": "code2"}
+    out = []
+    for line in commands:
+        folder, command = line.split(" ", 1)
+        out.append(f"{where[folder]}: {command.removeprefix('-m adarl.cli.main ')}")
+    return done.returncode, out
 
 
 def _sweep(tmp_path: Path, sweep: str) -> str:
-    out = tmp_path / "results" / SHARED_FOLDER.get(sweep, Path(sweep).name.removesuffix(".yaml"))
-    return f"sweep {sweep} --out {out} --workers 2 --no-progress"
+    folder = SHARED_FOLDER.get(sweep, Path(sweep).name.removesuffix(".yaml"))
+    code = "code2" if folder == "claim2-across-tasks" else "code"
+    return f"{code}: sweep {sweep} --out {tmp_path / 'results' / folder} --workers 2 --no-progress"
 
 
 def _runs(tmp_path: Path, evaluated=()) -> list[Path]:
@@ -79,7 +88,8 @@ def _runs(tmp_path: Path, evaluated=()) -> list[Path]:
 
 def _robustness(runs) -> str:
     return (
-        f"evaluate {' '.join(map(str, runs))} --suite paper --episodes 5 --workers 2 --no-progress"
+        f"code: evaluate {' '.join(map(str, runs))} --suite paper --episodes 5 --workers 2 "
+        "--no-progress"
     )
 
 
@@ -102,7 +112,7 @@ def test_only_the_runs_without_their_robustness_evaluation_are_evaluated(tmp_pat
     (tmp_path / "commands").unlink()
     for run in todo:
         (run / "suites/paper.csv").write_text("suite\n")
-    assert not any(c.startswith("evaluate") for c in _campaign(tmp_path)[1])
+    assert not any(c.startswith("code: evaluate") for c in _campaign(tmp_path)[1])
 
 
 def test_no_walker2d_runs_nothing_to_evaluate(tmp_path):
