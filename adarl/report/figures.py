@@ -246,11 +246,19 @@ def _label_octaves(ax) -> float:
     return float(np.log2(high / low) * (7 / 72) / max(height_in, 1e-3))
 
 
+MAX_LEVEL_STEPS = 12  # steps with a new level a rank panel writes; more: the first and the last
+
+
 def _level_labels(ax, starts: Sequence[tuple[float, float, tuple]]) -> None:
     """Write each rank level (x where it begins, rank, line colour) just above its line. Levels
     that begin at one step and lie closer than a label's height on the log axis share one label
-    in black: "26, 27", or the range "15–18" for three or more."""
+    in black: "26, 27", or the range "15–18" for three or more. Where levels begin at more than
+    `MAX_LEVEL_STEPS` steps, only each line's first and last level are written."""
     gap = _label_octaves(ax)
+    if len({x for x, _, _ in starts}) > MAX_LEVEL_STEPS:  # too many to write: first and last
+        last = {colour: x for x, _, colour in sorted(starts, key=lambda s: s[0])}
+        first = min(x for x, _, _ in starts)
+        starts = [s for s in starts if s[0] == first or s[0] == last[s[2]]]
     by_step: dict[float, list[tuple[float, tuple]]] = {}
     for x, rank, colour in starts:
         by_step.setdefault(x, []).append((rank, colour))

@@ -196,7 +196,11 @@ def test_close_levels_of_several_seeds_share_one_label():
     FigureCanvasAgg(fig).draw()
     texts = [t.get_text() for t in _texts(fig.axes[0])]
     assert sorted(texts, key=lambda t: float(t.split(",")[0].split("–")[0])) == [
-        "26, 27", "27, 28", "30", "35–37", "64"
+        "26, 27",
+        "27, 28",
+        "30",
+        "35–37",
+        "64",
     ]  # fmt: skip: seed 2 stays at 28 at the last cut (no new level)
 
 
@@ -210,3 +214,14 @@ def test_close_levels_of_several_seeds_share_one_label():
 )
 def test_log2_ticks_are_integers_as_dense_as_the_range_allows(low, high, expected):
     assert figures.Log2Ticks().tick_values(low, high) == expected
+
+
+def test_a_long_schedule_writes_only_the_first_and_last_levels():
+    steps = [1000 * k for k in range(20)]
+    history = pd.DataFrame(
+        [(step, 0, "actor_1", 64 - k) for k, step in enumerate(steps)],
+        columns=["step", "seed", "layer", "rank"],
+    )
+    assert len(steps) > figures.MAX_LEVEL_STEPS
+    fig = figures.rank_trajectories(history, 7)
+    assert sorted(t.get_text() for t in _texts(fig.axes[0])) == ["45", "64"]
