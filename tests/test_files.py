@@ -171,3 +171,46 @@ def test_a_special_file_is_refused_and_left_as_it_was(tmp_path):
     check_writable_file(regular)  # a regular file may be replaced
     atomic_write_bytes(regular, b"new")
     assert regular.read_bytes() == b"new"
+
+
+def test_a_failed_replace_leaves_no_temp_file(tmp_path, monkeypatch):
+    """The atomic write removes its temporary file when the rename fails (disk error, EXDEV)."""
+    import errno
+
+    from adarl import files
+    from adarl.errors import RunFailed
+
+    target = tmp_path / "out.bin"
+    target.write_bytes(b"old")
+
+    def fail(src, dst):
+        raise OSError(errno.EIO, os.strerror(errno.EIO), str(dst))
+
+    monkeypatch.setattr(files.os, "replace", fail)
+    with pytest.raises(RunFailed, match="Input/output error"):
+        files.atomic_write_bytes(target, b"new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]
+    assert target.read_bytes() == b"old"
+
+
+def test_remove_orphans_keeps_live_and_other_hosts_folders(tmp_path, monkeypatch):
+    """Only this host's folders of processes that no longer run are removed."""
+    import socket
+
+    from adarl import files
+
+    host = socket.gethostname()
+    dead = 2**22 + 12345  # above any pid_max default: no such process
+    monkeypatch.setattr(files, "_alive", lambda pid: pid != dead)
+    names = {
+        "mine-dead": f".R.tmp-{dead}-{host}-abc",
+        "mine-live": f".R.tmp-{os.getpid()}-{host}-abc",
+        "other-host-dead": f".R.tmp-{dead}-{host}x-abc",
+        "other-host-prefix": f".R.tmp-{dead}-x{host}-abc",
+        "not-a-pid": f".R.tmp-12a-{host}-abc",
+    }
+    for name in names.values():
+        (tmp_path / name).mkdir()
+    files.remove_orphans(tmp_path, ".R.tmp-")
+    left = {p.name for p in tmp_path.iterdir()}
+    assert left == set(names.values()) - {names["mine-dead"]}
