@@ -782,8 +782,9 @@ def export(sweep: Path, rows: Path | None = None) -> tuple[list[Path], list[Path
         target = rows / run.path.relative_to(sweep)
         target.mkdir(parents=True, exist_ok=True)
         for name in RUN_FILES:
-            shutil.copyfile(run.path / name, target / name)
-            written.append(target / name)
+            if (run.path / name).is_file():
+                shutil.copyfile(run.path / name, target / name)
+                written.append(target / name)
         for name in FILES:
             if (run.path / name).is_file():
                 with (run.path / name).open("rb") as f, gzip.GzipFile(target / f"{name}.gz", "wb", mtime=0) as g:  # fmt: skip
