@@ -226,6 +226,7 @@ def test_the_accelerator_check_runs_on_the_cpu_at_a_tiny_size(tmp_path):
     reason="compiles MJX on the CPU five times (17 min on a loaded 2-core machine, issue 57); "
     "run with ADARL_ACCELERATOR_CHECK=1",
 )
+@pytest.mark.timeout(3600)  # beyond the suite's per-test limit: five MJX compiles
 def test_the_accelerator_check_measures_the_device_on_the_cpu(tmp_path):
     """The same check with every device measurement done: one device line (Hopper, 2 seeds, one
     timed chunk), one Walker2d line under the paper's per-episode physics with the solver's line
