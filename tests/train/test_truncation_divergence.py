@@ -1,7 +1,8 @@
 """Issue 55: weights that went non-finite between two checks never reach the SVD of a
 truncation (jaxlib's SVD of a matrix holding inf does not return): the run stops there with exit
 3 (`Diverged`) before the cut; with `--on-divergence continue` the cut leaves the non-finite
-layer as it was and training goes on to the end."""
+layer as it was and training goes on to the end, and no pre-truncation checkpoint is written
+after the divergence warning."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 from adarl.algos import sac_config, schedule
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import Diverged
+from adarl.runs import layout
 from adarl.runs.logs import read_csv
 from adarl.train import sac_learner, trainers
 
@@ -64,12 +66,14 @@ def test_weights_gone_inf_before_a_cut_stop_the_run_there_with_exit_3(tmp_path, 
 def test_with_on_divergence_continue_the_cut_leaves_the_inf_layer_and_goes_on(
     tmp_path, monkeypatch, capsys
 ):
-    config = adarl_config(on_divergence="continue")
+    config = adarl_config(on_divergence="continue", checkpoint_before_truncation=True)
     steps = schedule.truncation_steps(config)
     poison_bottleneck_before(steps[0], monkeypatch)
     run_dir = tmp_path / "run"
     trainers.train(config, run_dir, progress=False)  # returns: no hang at the cut
     assert (run_dir / "DONE").exists()
+    pre = run_dir / layout.PRE_TRUNCATION_DIR
+    assert not pre.exists() or not list(pre.iterdir())  # never a checkpoint of inf weights
     assert f"training diverged at step {steps[0]}" in capsys.readouterr().err
     rows = [r for r in read_csv(run_dir / "truncations.csv") if r["layer"].startswith("actor")]
     poisoned = [r for r in rows if r["seed"] == "1" and int(r["step"]) == steps[0]]
