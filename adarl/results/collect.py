@@ -308,7 +308,9 @@ def training_curve(run: Run) -> tuple[pd.DataFrame, str]:
 
     From the nominal evaluations logged in eval.csv (mean over episodes per step and seed); a
     run without them falls back to the training episodes (episodes.csv) averaged in
-    `CURVE_BINS` equal step bins.
+    `CURVE_BINS` equal step bins with edges e_0 = 0 < … < e_50 = the last episode's step: bin k
+    holds the episodes ending in (e_{k−1}, e_k] (the first also those at step 0) and is drawn at
+    its right edge e_k, so an episode ending exactly on an edge counts in the bin it closes.
     """
     log = read_table(run.path / EVAL_CSV)
     if not log.empty and "dynamics" in log:
