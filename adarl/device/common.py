@@ -3,7 +3,8 @@
 A task is a `Rules` (its XML, frame skip, observation, forward position, reward and health, reset
 noise) run by one `DeviceTask`: the MJX model in one floating type, per-episode model fields,
 ``set_state`` (`DeviceTask.reset_to`) and ``do_simulation`` (the action written to ``ctrl``, then
-``frame_skip`` physics steps, then ``mj_rnePostConstraint`` where the task reads ``cfrc_ext``).
+``frame_skip`` physics steps, then ``mj_rnePostConstraint`` where the task reads ``cfrc_ext``),
+their matmuls at `adarl.device.MATMUL_PRECISION` (float32, not a GPU's TF32).
 
 Per-episode physics: ``reset(key, fields)`` takes a dict of `mjx.Model` leaves by dotted name
 (``{"body_mass": ..., "opt.gravity": ...}``) that replace the base model's for that episode; the
@@ -19,6 +20,8 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
+
+from adarl.device import matmul_precision
 
 
 class State(NamedTuple):
@@ -128,7 +131,8 @@ class DeviceTask:
         data = self._data0.replace(
             qpos=jnp.asarray(qpos, self.dtype), qvel=jnp.asarray(qvel, self.dtype)
         )
-        data = self._mjx.forward(self.model_for(fields), data)
+        with matmul_precision():
+            data = self._mjx.forward(self.model_for(fields), data)
         return State(data, fields)
 
     def observation(self, data):
@@ -150,9 +154,10 @@ class DeviceTask:
         def physics_step(d, _):
             return mjx.step(model, d), None
 
-        data, _ = jax.lax.scan(physics_step, data, None, length=rules.frame_skip)
-        if rules.contact_forces:
-            data = mjx.rne_postconstraint(model, data)
+        with matmul_precision():
+            data, _ = jax.lax.scan(physics_step, data, None, length=rules.frame_skip)
+            if rules.contact_forces:
+                data = mjx.rne_postconstraint(model, data)
         velocity = (rules.position(model, data) - before) / self.dt
         reward, healthy = rules.reward(data, action, velocity)
         terminated = jnp.logical_not(healthy)

@@ -38,7 +38,8 @@ def episode_params(schedule: DynamicsSchedule, seed: int, index: int) -> dict[st
 
 
 def mjx_model(mj_model, rules: Rules):
-    """``mjx.put_model`` of `mj_model` as `rules`' task runs it (`device_model`) in float64 on the CPU: (leaves, static), the array leaves by dotted
+    """``mjx.put_model`` of `mj_model` as `rules`' task runs it (`device_model`) in float64 on the
+    CPU (`host_device`): (leaves, static), the array leaves by dotted
     name (``opt.gravity``, ``body_mass``) and the non-array part (sizes, solver, flags such as
     ``has_fluid_params``). A model whose static part differs from the base's cannot be expressed
     by replacing leaves; ``_impl.geom_rbound_hfield`` (a static copy of ``geom_rbound`` that MJX
@@ -47,13 +48,22 @@ def mjx_model(mj_model, rules: Rules):
     from mujoco import mjx
 
     with jax.enable_x64(True):
-        model = mjx.put_model(
-            device_model(rules, mj_model), impl="jax", device=jax.devices("cpu")[0]
-        )
+        model = mjx.put_model(device_model(rules, mj_model), impl="jax", device=host_device())
         if mj_model.nhfield == 0:
             model = model.tree_replace({"_impl.geom_rbound_hfield": np.zeros(0)})
         pairs, static = jax.tree_util.tree_flatten_with_path(model)
         return {_dotted(path): np.asarray(leaf) for path, leaf in pairs}, static
+
+
+def host_device():
+    """The CPU device where the process has one, else None (JAX's default device): under
+    ``JAX_PLATFORMS=cuda`` there is no CPU backend and ``jax.devices("cpu")`` raises."""
+    import jax
+
+    try:
+        return jax.devices("cpu")[0]
+    except RuntimeError:
+        return None
 
 
 def _dotted(path) -> str:
@@ -184,7 +194,9 @@ class PhysicsRing:
 
     `fill(current)` makes each seed's ring hold its episodes ``current … current + slots - 1``
     (a chunk of n env steps starts at most n episodes, one per step, so ``slots = n + 1``
-    covers a chunk), compiling only the rows it lacks. Seed i's episode e has the host env's
+    covers a chunk, and the device learner's ``2n + 1`` two chunks: the one running and the
+    next, dispatched before the first one's episodes are known), compiling only the rows it
+    lacks; `refill` says which rows those were. Seed i's episode e has the host env's
     parameters for schedule seed ``seeds[i]`` (`episode_params`), so both backends run the same
     sequence; rows of schedules without random draws (`paper`, `ompo`) depend on the episode
     index only and are compiled once per index for all seeds (kept while some seed may still
@@ -217,6 +229,11 @@ class PhysicsRing:
     def fill(self, current) -> bool:
         """Hold episodes ``current … current + slots - 1`` of every seed (`current`: (seeds,)
         episode indices); returns whether any slot changed."""
+        return len(self.refill(current)) > 0
+
+    def refill(self, current) -> np.ndarray:
+        """`fill`, returning the (seed, slot) pairs it rewrote ((k, 2) integers, seed-major):
+        the only rows a device copy of `fields` needs anew."""
         want = ring_episodes(current, self.slots)
         stale = np.argwhere(want != self.held)
         for i, k in stale:
@@ -225,4 +242,4 @@ class PhysicsRing:
         self.held = want
         lowest = int(np.min(current))
         self._by_index = {e: r for e, r in self._by_index.items() if e >= lowest}
-        return len(stale) > 0
+        return stale

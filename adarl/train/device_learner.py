@@ -2,19 +2,32 @@
 one computation, on the MJX task (`adarl.device`), driven by the one loop (`adarl.train.loop`)
 through the `Learner` protocol like any learner.
 
-Each `advance` is one jitted call over all seeds: a chunk of `update_every` environment steps
-(actions, task steps, resets and replay inserts inside `lax.scan`), then `update_every` gradient
-steps (`adarl.algos.sac_device.chunk`). Parameters, optimiser states, replay buffers, task states
-and keys stay in device arrays; the host reads back only what ended in the chunk (episodes for
-episodes.csv) and the update metrics. Ranks are masks (the bottlenecks keep their full width), so
-seeds whose ranks differ share one shape and one compiled update; a truncation is `sac.truncate`
-vmapped over the seeds (SVD of the masked factors, the rule, optimiser and target resets).
+A chunk is one jitted call over all seeds: `update_every` environment steps (actions, task
+steps, resets from the chunk's pool and replay inserts inside `lax.scan`), then `update_every`
+gradient steps (`adarl.algos.sac_device.chunk`). An `advance` runs chunks up to the loop's next
+event (at most `MAX_CHUNKS`), dispatching chunk k+1 before it reads what ended in chunk k, so
+the device never waits for the host between chunks. Parameters, optimiser states, replay
+buffers, task states and keys stay in device arrays; the host reads back only what ended in
+each chunk (episodes for episodes.csv) and the update metrics. Ranks are masks (the bottlenecks
+keep their full width), so seeds whose ranks differ share one shape and one compiled update; a
+truncation is `sac.truncate` vmapped over the seeds (SVD of the masked factors, the rule,
+optimiser and target resets). Every matmul runs at `adarl.device.MATMUL_PRECISION` (float32,
+not a GPU's TF32), recorded in each checkpoint's meta.json.
 
-Per-episode physics (`paper`, `ompo`, `uniform`) is a ring of ``update_every + 1`` rows of model
-fields per seed on the device (`adarl.device.physics.PhysicsRing`): episode e runs with slot
-e mod (update_every + 1); before each chunk the host refills the slots of each seed's episodes
-from its current one on (at most `update_every` start in a chunk), with the host env's
-parameters for that seed. A restore rebuilds the ring from the checkpointed episode counters.
+Per-episode physics (`paper`, `ompo`, `uniform`) is a ring of ``2·update_every + 1`` rows of
+model fields per seed on the device (`adarl.device.physics.PhysicsRing`): episode e runs with
+slot e mod (2·update_every + 1). After reading chunk k, while chunk k+1 runs, the host refills
+the slots of each seed's episodes from its current one on and copies only the rewritten rows to
+the device: the ring covers both chunk k+1 and chunk k+2, which is dispatched next (each starts
+at most `update_every` episodes). A restore rebuilds the ring from the checkpointed episode
+counters. A checkpoint copies the replay rows to the host one seed at a time, never a second
+copy of every seed's buffers.
+
+Each evaluation also runs every seed's policy on the device task (`sac_device.evaluate`,
+`eval_episodes` episodes per seed and evaluation dynamics, all vmapped into one call) while the
+host evaluates as every learner does: the loop writes its rows to eval_device.csv (the device
+evaluation), and eval.csv, the best policies and every report keep the host's, so that runs
+of both backends are compared on the same physics.
 
 Unlike the host learner, a seed's numbers depend on the batch it runs in: vmapping seeds into
 one computation changes the kernels, and so the last bits, of every seed in it (as in every
@@ -27,14 +40,16 @@ from __future__ import annotations
 
 import functools
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from adarl.algos import replay, sac, sac_config, sac_device, schedule
+from adarl.device import MATMUL_PRECISION, matmul_precision, numerics
 from adarl.errors import UsageError
-from adarl.runs import checkpoints, codec, layout
+from adarl.runs import checkpoints, codec, layout, npz
 from adarl.train.guards import check_device_memory, check_training_memory
 from adarl.train.learner import Advance, Episode, Truncation, due
 from adarl.train.sac_learner import (
@@ -47,8 +62,20 @@ from adarl.train.sac_learner import (
 )
 
 BACKEND = "device"
-BUFFER_KEYS = ("obs", "act", "rew", "term", "valid", "ptr", "size")
+ROW_KEYS = ("obs", "act", "rew", "term", "valid")  # a buffer's rows; then its ptr and size
+BUFFER_KEYS = (*ROW_KEYS, "ptr", "size")
 PENDING = "pending"  # arrays.npz prefix of the update metrics not yet averaged into train.csv
+#: the device evaluation's log, beside the host's eval.csv, with its columns
+#: (`runs.logs.EVAL_COLUMNS`, which the loop's logs own)
+DEVICE_EVAL_CSV = "eval_device.csv"
+DEVICE_EVAL_COLUMNS = ["step", "seed", "dynamics", "episode", "return", "length"]
+#: chunks one `advance` runs at most: a stop asked for (SIGTERM) waits for at most these
+MAX_CHUNKS = 8
+
+
+def read_ended(ended):
+    """What ended in a chunk, on the host (it waits for that chunk; the next one is queued)."""
+    return jax.device_get(ended)
 
 
 @dataclass(frozen=True)
@@ -57,7 +84,7 @@ class SeedPhysics:
     `mjx.Model` leaves by dotted name, arrays of shape (seeds, episodes, …) (empty: the task's
     own model); `params`, the physical parameters episodes.csv records (name -> (seeds,
     episodes)). Episode e of a seed uses row e mod (episodes). Per-episode schedules use
-    `adarl.device.physics.PhysicsRing`, which has the same three members."""
+    `adarl.device.physics.PhysicsRing`, which has the same members."""
 
     fields: dict
     params: dict
@@ -65,9 +92,9 @@ class SeedPhysics:
     def episode_params(self, index: int, episode: int) -> dict:
         return {k: float(v[index, episode % v.shape[1]]) for k, v in self.params.items()}
 
-    def fill(self, current) -> bool:
-        """The rows never change (`PhysicsRing.fill` refills a ring)."""
-        return False
+    def refill(self, current) -> np.ndarray:
+        """The rows never change (`PhysicsRing.refill` refills a ring): none rewritten."""
+        return np.zeros((0, 2), np.int64)
 
 
 def fixed_physics(config) -> SeedPhysics:
@@ -84,17 +111,47 @@ def fixed_physics(config) -> SeedPhysics:
     return SeedPhysics({}, {k: np.full((n, 1), v) for k, v in params.items()})
 
 
+def ring_slots(config) -> int:
+    """Rows per seed of the physics ring: the running chunk's episodes and the next chunk's
+    (each starts at most `update_every` besides the one running at its start)."""
+    return 2 * config.update_every + 1
+
+
 def seed_physics(config, task):
     """The per-episode physics of a run's seeds: `fixed_physics` for dynamics that are one model,
-    else a `PhysicsRing` of ``update_every + 1`` rows per seed (a chunk starts at most
-    `update_every` episodes besides the running one) in the task's floating type."""
+    else a `PhysicsRing` of `ring_slots` rows per seed in the task's floating type."""
     from adarl.device.physics import PhysicsRing
     from adarl.envs.dynamics import parse_dynamics
 
     if not parse_dynamics(config.dynamics, config.task).varies:
         return fixed_physics(config)
     table = schedule_table(config.task, config.dynamics)
-    return PhysicsRing(table, config.seeds, config.update_every + 1, np.dtype(task.dtype))
+    return PhysicsRing(table, config.seeds, ring_slots(config), np.dtype(task.dtype))
+
+
+def eval_fields(config, label: str, dtype) -> dict:
+    """The model fields of every seed's device evaluation episodes under `label` (name ->
+    (seeds, eval_episodes, …)): none for dynamics that are one model (the label's device task
+    is that model), else episode k of seed s has the host evaluation's parameters (its env's
+    schedule seed is 1,000,000 + s, `physics.episode_params`)."""
+    from adarl.device.physics import episode_params
+    from adarl.envs.dynamics import parse_dynamics
+
+    if not parse_dynamics(label, config.task).varies:
+        return {}
+    table = schedule_table(config.task, label)
+    rows = {}
+    per_seed = []
+    for seed in config.seeds:
+        episodes = []
+        for k in range(config.eval_episodes):
+            params = episode_params(table.schedule, 1_000_000 + seed, k)
+            key = (seed, k) if table.schedule.needs_rng else k
+            if key not in rows:
+                rows[key] = table.fields_at(params)
+            episodes.append(rows[key])
+        per_seed.append({n: np.stack([e[n] for e in episodes]) for n in table.names})
+    return {n: np.stack([s[n] for s in per_seed]).astype(dtype) for n in table.names}
 
 
 class EnvView:
@@ -111,6 +168,35 @@ class EnvView:
         pass
 
 
+class SeedRows:
+    """One seed's first `used` rows of a device buffer array as a part of `adarl.runs.npz.Stacked`,
+    copied to the host only when the checkpoint writes it: a checkpoint holds one seed's rows at
+    a time, on the device and on the host, never a second copy of every seed's."""
+
+    def __init__(self, take, array, index: int, used: int):
+        self.take, self.array, self.index, self.used = take, array, index, used
+        self.shape = (1, used, *array.shape[2:])
+        self.dtype = np.dtype(array.dtype)
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        rows = np.asarray(jax.device_get(self.take(self.array, np.int32(self.index))))
+        rows = rows[: self.used][None]
+        return rows if dtype is None else rows.astype(dtype)
+
+
+def precise(fn):
+    """`fn` with every matmul it traces at `adarl.device.MATMUL_PRECISION` (float32: on a GPU,
+    JAX's default for float32 matmuls is TF32)."""
+
+    def run(*args):
+        with matmul_precision():
+            return fn(*args)
+
+    inner = getattr(fn, "func", fn)  # a partial: the function's own name in compile logs
+    run.__name__ = getattr(inner, "__name__", "device_function")
+    return run
+
+
 @dataclass(eq=False)
 class Compiled:
     """The jitted, seed-vmapped functions of one spec."""
@@ -119,6 +205,11 @@ class Compiled:
     chunk: callable
     truncate: callable
     ranks: callable
+    diagnostics: callable
+    put_rows: callable  # (table, seeds, slots, rows): the ring's rewritten rows in place
+    seed_rows: callable  # (array, i): seed i's rows
+    put_seed_rows: callable  # (array, i, rows): seed i's rows in place (donated)
+    evaluations: dict = field(default_factory=dict)  # eval dynamics label -> jitted evaluate
 
 
 _COMPILED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
@@ -147,23 +238,64 @@ def device_task(name: str, dynamics: str, solver: str = "xml"):
     return tasks.make(name, mj_model=schedule_table(name, dynamics).mj_model, solver=caps)
 
 
+def _diagnostics(spec: sac.Spec, state):
+    """sac-sparse's `active_fraction` (the host learner's: the actor's code on a replay batch
+    drawn with key 0)."""
+    c = spec.config
+    out = {}
+    if c.sparse_width:
+        obs = replay.sample(state["buffer"], jax.random.PRNGKey(0), c.batch_size)["obs"]
+        h = sac.actor_features(spec, state["actor"], state["masks"]["actor"], obs)
+        out["active_fraction"] = jnp.mean(h > 0)
+    return out
+
+
 def compile_functions(spec: sac.Spec) -> Compiled:
     """Jitted functions for `spec`, shared by the runs of this process that use it at the same
-    time (each compile of a device chunk takes tens of seconds on a CPU)."""
+    time (each compile of a device chunk takes tens of seconds on a CPU); every one traced at
+    `MATMUL_PRECISION` (`precise`)."""
     fns = _COMPILED.get(spec)
     if fns is None:
-        task = device_task(spec.config.task, spec.config.dynamics, spec.config.device_solver)
+        c = spec.config
+        task = device_task(c.task, c.dynamics, c.device_solver)
         vmap = jax.vmap
 
-        def chunk(n_steps, state, env, table, step, update):
-            one = functools.partial(sac_device.chunk, spec, task, n_steps)
-            return vmap(one, in_axes=(0, 0, 0, None, None))(state, env, table, step, update)
+        def put_rows(table, seeds, slots, rows):
+            return {k: table[k].at[seeds, slots].set(rows[k]) for k in table}
 
+        evaluations = {
+            label: jax.jit(
+                precise(
+                    functools.partial(
+                        sac_device.evaluate,
+                        spec,
+                        device_task(c.task, label, c.device_solver),
+                        c.max_episode_steps,
+                        c.eval_episodes,
+                    )
+                )
+            )
+            for label in c.eval_dynamics
+        }
         fns = _COMPILED[spec] = Compiled(
-            init_env=jax.jit(vmap(functools.partial(sac_device.init_env, task))),
-            chunk=jax.jit(chunk, static_argnums=(0,), donate_argnums=(1, 2)),
-            truncate=jax.jit(vmap(functools.partial(sac.truncate, spec)), donate_argnums=(0,)),
+            init_env=jax.jit(precise(vmap(functools.partial(sac_device.init_env, task)))),
+            chunk=jax.jit(
+                precise(functools.partial(sac_device.chunk, spec, task)),
+                static_argnums=(0,),
+                donate_argnums=(1, 2),
+            ),
+            truncate=jax.jit(
+                precise(vmap(functools.partial(sac.truncate, spec))), donate_argnums=(0,)
+            ),
             ranks=jax.jit(vmap(functools.partial(sac.rank_state, spec))),
+            diagnostics=jax.jit(precise(vmap(functools.partial(_diagnostics, spec)))),
+            put_rows=jax.jit(put_rows),
+            seed_rows=jax.jit(lambda a, i: jax.lax.dynamic_index_in_dim(a, i, keepdims=False)),
+            put_seed_rows=jax.jit(
+                lambda a, i, rows: jax.lax.dynamic_update_index_in_dim(a, rows, i, 0),
+                donate_argnums=(0,),
+            ),
+            evaluations=evaluations,
         )
     return fns
 
@@ -185,7 +317,7 @@ class DeviceSACLearner:
         self.n = len(self.seeds)
         self.env_options = config.env_options()
         task = device_task(config.task, config.dynamics, config.device_solver)
-        # SeedPhysics or PhysicsRing: fields, episode_params, fill
+        # SeedPhysics or PhysicsRing: fields, episode_params, refill
         self.physics = seed_physics(config, task) if physics is None else physics
         self.envs = [EnvView(self.physics.episode_params(i, 0)) for i in range(self.n)]
         low, high = np.asarray(task.mj_model.actuator_ctrlrange, np.float32).T
@@ -194,7 +326,7 @@ class DeviceSACLearner:
         self.truncation_steps = set(schedule.truncation_steps(config))
         memory = (
             self.n,
-            self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
+            config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             self.n * sac.state_bytes(self.spec)
             + sum(v.nbytes for v in self.physics.fields.values()),
             f"lower --buffer-size ({config.buffer_size}) or --hidden "
@@ -202,19 +334,27 @@ class DeviceSACLearner:
         )
         check_training_memory(*memory)
         check_device_memory(*memory)
-        for label in config.eval_dynamics:  # evaluation runs on the host tasks; checked now
+        for label in config.eval_dynamics:  # the host evaluation's tasks; checked now
             make(
                 config.task, dynamics=label, seed=0, **self.env_options | {"max_episode_steps": 1}
             ).close()
+        # the device evaluation's tasks and per-episode fields, on the device from here on
+        self.eval_fields = {
+            label: jax.device_put(eval_fields(config, label, np.dtype(task.dtype)))
+            for label in config.eval_dynamics
+        }
+        self.eval_keys = np.stack([sac_device.eval_key(s) for s in self.seeds])
         extra = ["parseval_penalty"] if config.parseval_coef > 0 else []
+        extra += ["active_fraction"] if config.sparse_width else []
         self.train_columns = BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
-        self.extra_logs = (
-            {layout.TRUNCATIONS_CSV: (TRUNCATION_COLUMNS, LEGACY_TRUNCATION_COLUMNS)}
-            if config.adapt_rank
-            else {}
-        )
+        self.extra_logs = {DEVICE_EVAL_CSV: (list(DEVICE_EVAL_COLUMNS),)}
+        if config.adapt_rank:
+            self.extra_logs[layout.TRUNCATIONS_CSV] = (
+                TRUNCATION_COLUMNS,
+                LEGACY_TRUNCATION_COLUMNS,
+            )
         self.fns = compile_functions(self.spec)
-        self.table = jax.device_put(self.physics.fields)  # refilled before each chunk
+        self.table = jax.device_put({k: v.copy() for k, v in self.physics.fields.items()})
         self.episodes = np.zeros(self.n, np.int64)  # each seed's current episode index
         self.infos: list = []  # update metrics of each chunk since the last train.csv rows
         self.metric_means: dict | None = None  # of the latest train.csv rows, per seed
@@ -239,30 +379,48 @@ class DeviceSACLearner:
         return jax.tree_util.tree_map(lambda *a: np.stack(a), *states)
 
     def load_physics(self) -> None:
-        """Put on the device the rows of each seed's episodes from its current one (`episodes`)
-        to the last a chunk can start (refilled on the host where they changed)."""
-        if self.physics.fill(self.episodes):  # copies: fill writes the host rows in place
+        """Make the device's ring hold the rows of each seed's episodes from its current one
+        (`episodes`) on: the host refills the slots whose episodes changed and copies only those
+        rows (`upload_rows`), or the whole ring where every slot changed (a fresh start)."""
+        stale = self.physics.refill(self.episodes)
+        if not len(stale):
+            return
+        if len(stale) == self.n * self.physics.slots:  # copies: refill writes the rows in place
             self.table = jax.device_put({k: v.copy() for k, v in self.physics.fields.items()})
+        else:
+            self.upload_rows(stale)
+
+    def upload_rows(self, stale: np.ndarray) -> None:
+        """Copy the ring's rewritten (seed, slot) rows `stale` into the device's table, padded
+        to a power of two by repeating the first (so a few shapes compile)."""
+        pad = (1 << (len(stale) - 1).bit_length()) - len(stale)
+        index = np.concatenate([stale, np.repeat(stale[:1], pad, axis=0)]).astype(np.int32)
+        seeds, slots = index[:, 0], index[:, 1]
+        rows = {k: v[seeds, slots] for k, v in self.physics.fields.items()}
+        self.table = self.fns.put_rows(self.table, seeds, slots, rows)
 
     def env_keys(self) -> np.ndarray:
         return np.stack([sac_device.env_key(s) for s in self.seeds])
 
     def checkpoint_state(self) -> tuple[dict[str, np.ndarray], dict]:
         """Everything to continue exactly: the SAC state, the replay rows written so far (and
-        the provisional one), the environment side (task states, observations, returns, keys)
-        and the update metrics not yet in train.csv."""
+        the provisional one), copied seed by seed as the checkpoint is written (`SeedRows`), the
+        environment side (task states, observations, returns, keys) and the update metrics not
+        yet in train.csv; meta.json records the matmul precision."""
         buffer = self.state["buffer"]
         arrays = codec.flatten_tree(
             jax.device_get({k: v for k, v in self.state.items() if k != "buffer"}), "state"
         )
         used = int(min(buffer["obs"].shape[1], int(np.max(jax.device_get(buffer["size"]))) + 1))
-        for k in BUFFER_KEYS:  # only the rows written so far leave the device
-            rows = buffer[k] if k in ("ptr", "size") else buffer[k][:, :used]
-            arrays[f"buffer/{k}"] = np.asarray(jax.device_get(rows))
+        for k in ROW_KEYS:  # only the rows written so far leave the device, a seed at a time
+            parts = [SeedRows(self.fns.seed_rows, buffer[k], i, used) for i in range(self.n)]
+            arrays[f"buffer/{k}"] = npz.Stacked(parts)
+        for k in ("ptr", "size"):
+            arrays[f"buffer/{k}"] = np.asarray(jax.device_get(buffer[k]))
         arrays.update(codec.flatten_tree(jax.device_get(self.env), "env_device"))
         for name in self.infos[0] if self.infos else ():
             arrays[f"{PENDING}/{name}"] = np.stack([np.asarray(i[name]) for i in self.infos])
-        return arrays, {"backend": BACKEND}
+        return arrays, {"backend": BACKEND, **numerics()}
 
     def restore(self, arrays: dict, meta: dict) -> None:
         if meta.get("backend") != BACKEND:
@@ -270,24 +428,35 @@ class DeviceSACLearner:
                 f"this checkpoint was written by the {meta.get('backend', 'host')} backend; "
                 "--backend device resumes only device checkpoints"
             )
+        recorded = meta.get("matmul_precision", MATMUL_PRECISION)  # older: CPU runs, the same
+        if recorded != MATMUL_PRECISION:
+            raise UsageError(
+                f"this checkpoint was written with matmul precision {recorded!r}; this adarl's "
+                f"device backend runs {MATMUL_PRECISION!r} and resumes only that"
+            )
         c = self.config
         state = codec.unflatten_tree(self.initial_state(), arrays, "state")
-        buffer = replay.init_buffer(c.buffer_size, self.spec.obs_dim, self.spec.act_dim)
+        template = replay.init_buffer(1, self.spec.obs_dim, self.spec.act_dim)
+        buffer = {}
         for k in BUFFER_KEYS:
             saved = arrays[f"buffer/{k}"]
-            if saved.shape[0] != self.n or saved.shape[2:] != buffer[k].shape[1:]:
+            if saved.shape[0] != self.n or saved.shape[2:] != template[k].shape[1:]:
                 raise UsageError(
                     f"checkpoint buffer {k!r} has shape {saved.shape}; expected {self.n} seeds "
-                    f"and rows of shape {buffer[k].shape[1:]}"
+                    f"and rows of shape {template[k].shape[1:]}"
                 )
             if k in ("ptr", "size"):
-                buffer[k] = saved
-            else:  # the rows past those written are zeros, as they were
-                full = np.zeros((self.n, *buffer[k].shape), buffer[k].dtype)
-                full[:, : saved.shape[1]] = saved
-                buffer[k] = full
-        state["buffer"] = buffer
+                buffer[k] = jax.device_put(np.asarray(saved))
+                continue
+            rows = (c.buffer_size, *template[k].shape[1:])
+            device = jnp.zeros((self.n, *rows), template[k].dtype)
+            for i in range(self.n):  # a seed at a time; the rows past those written are zeros
+                seed_rows = np.zeros(rows, template[k].dtype)
+                seed_rows[: saved.shape[1]] = saved[i]
+                device = self.fns.put_seed_rows(device, np.int32(i), seed_rows)
+            buffer[k] = device
         self.state = jax.device_put(state)
+        self.state["buffer"] = buffer
         env = jax.eval_shape(self.fns.init_env, self.env_keys(), self.table)
         self.env = jax.device_put(codec.unflatten_tree(env, arrays, "env_device"))
         self.episodes = np.asarray(jax.device_get(self.env["episode"]), np.int64)
@@ -299,19 +468,35 @@ class DeviceSACLearner:
 
     # ------------------------------------------------------------------ acting and learning
     def advance(self, step: int) -> Advance:
-        """One chunk of every seed from `step` (one jitted call); the episodes that ended in it,
-        ordered by step, then by seed."""
+        """Every seed's chunks from `step` up to the loop's next event (at most `MAX_CHUNKS`),
+        each one jitted call, chunk k+1 dispatched before chunk k's episodes are read; the
+        episodes that ended, ordered by step, then by seed."""
         c = self.config
-        end = schedule.chunk_end(c, step)
-        update = schedule.chunk_updates(c, end)
         self.load_physics()
-        self.state, self.env, ended, info = self.fns.chunk(
-            end - step, self.state, self.env, self.table, np.int32(step), np.bool_(update)
-        )
-        if update:
-            self.infos.append(info)
-        done, ret, length, index = jax.device_get(ended)  # (seeds, steps)
+        episodes, pending = [], None
+        for _ in range(MAX_CHUNKS):
+            end = schedule.chunk_end(c, step)
+            update = schedule.chunk_updates(c, end)
+            self.state, self.env, ended, info = self.fns.chunk(
+                end - step, self.state, self.env, self.table, np.int32(step), np.bool_(update)
+            )
+            if update:
+                self.infos.append(info)
+            if pending is not None:
+                episodes += self.collect(*pending)
+            pending, step = (step, ended), end
+            events = due(c, end, truncate=end in self.truncation_steps)
+            if events:
+                break
+        episodes += self.collect(*pending)
+        return Advance(step, episodes, events)
+
+    def collect(self, step: int, ended) -> list[Episode]:
+        """The episodes that ended in the chunk from `step` (`ended`, its device output); moves
+        the episode counters on and refills the ring from them (for the chunk after the next)."""
+        done, ret, length, index = read_ended(ended)  # (seeds, steps)
         self.episodes = index[:, -1].astype(np.int64) + done[:, -1]  # the episode running now
+        self.load_physics()
         episodes = []
         for k, i in zip(*np.nonzero(done.T)):
             info = {
@@ -321,7 +506,7 @@ class DeviceSACLearner:
             episodes.append(
                 Episode(int(i), step + int(k) + 1, info, float(ret[i, k]), int(length[i, k]))
             )
-        return Advance(end, episodes, due(c, end, truncate=end in self.truncation_steps))
+        return episodes
 
     def parameters_finite(self) -> bool:
         finite = jax.device_get(finite_parameters(self.state))
@@ -338,6 +523,32 @@ class DeviceSACLearner:
         return Truncation(spectra, rows)
 
     # ------------------------------------------------------------------ what the loop reads
+    def start_evaluation(self, step: int):
+        """The device evaluation at `step`: every seed's `eval_episodes` deterministic episodes
+        under each evaluation dynamics, dispatched now (`sac_device.evaluate`, one call per
+        dynamics) so that it runs while the host evaluates; returns a function that waits for
+        it and gives the rows for `DEVICE_EVAL_CSV` (log name -> rows, seed by seed)."""
+        actor, masks = self.state["actor"], self.state["masks"]["actor"]
+        keys = self.eval_keys
+        results = {
+            label: self.fns.evaluations[label](actor, masks, keys, self.eval_fields[label])
+            for label in self.config.eval_dynamics
+        }
+
+        def rows() -> dict[str, list[dict]]:
+            out = {label: jax.device_get(r) for label, r in results.items()}
+            written = []
+            for i, seed in enumerate(self.seeds):
+                for label, (returns, lengths) in out.items():
+                    values = [
+                        (step, seed, label, k, float(returns[i, k]), int(lengths[i, k]))
+                        for k in range(returns.shape[1])
+                    ]
+                    written += [dict(zip(DEVICE_EVAL_COLUMNS, v, strict=True)) for v in values]
+            return {DEVICE_EVAL_CSV: written}
+
+        return rows
+
     def train_rows(self, step: int, steps_per_s: float) -> list[dict]:
         """One train.csv row per seed: the update metrics averaged since the last rows, and the
         ranks (none before the first update)."""
@@ -347,6 +558,9 @@ class DeviceSACLearner:
         self.infos = []
         mean = self.metric_means = {k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]}
         ranks = jax.device_get(self.fns.ranks(self.state))
+        diagnostics = (
+            jax.device_get(self.fns.diagnostics(self.state)) if self.config.sparse_width else {}
+        )
         rows = []
         for i, seed in enumerate(self.seeds):
             row = {"step": step, "seed": seed, "steps_per_s": steps_per_s}
@@ -354,6 +568,8 @@ class DeviceSACLearner:
             row.update({"q_mean": mean["q_mean"][i], "lr": mean["lr"][i]})
             if self.config.parseval_coef > 0:
                 row["parseval_penalty"] = mean["penalty_actor"][i] + mean["penalty_critic"][i]
+            if self.config.sparse_width:
+                row["active_fraction"] = diagnostics["active_fraction"][i]
             row.update({f"rank_{n}": int(ranks[n][i]) for n in self.layer_names})
             rows.append(row)
         return rows

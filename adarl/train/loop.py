@@ -269,6 +269,10 @@ class Loop:
         from adarl.policy import NumpyPolicy
 
         c = self.config
+        # a learner with its own evaluation (the device learner's, on its accelerator) starts
+        # it first, so that it runs while the host evaluates; its rows go to its own logs
+        start = getattr(self.learner, "start_evaluation", None)
+        own_rows = start(self.step) if start is not None else None
         for seed, arrays in zip(self.seeds, self.learner.policies()):
             policy = NumpyPolicy(arrays)
             for label in c.eval_dynamics:
@@ -285,6 +289,8 @@ class Loop:
                 self.tb.write(self.step, {logs.tb_eval_return(label, seed): mean_return})
                 if label == "nominal":
                     self.best.offer(seed, self.step, mean_return, arrays)
+        for name, rows in own_rows().items() if own_rows is not None else ():
+            self.logs[name].write(rows)
 
     def check_divergence(self) -> None:
         """Stop the run (or warn once) on non-finite parameters, optimiser states, metrics or

@@ -56,3 +56,20 @@ def test_hopper_matches_a_converged_host_on_every_lane(setup):
         for m, tolerance in zip(models, tolerances, strict=True):
             m.opt.tolerance = tolerance
     assert result.termination_mismatches == 0 and result.terminations > 3
+
+
+def test_hopper_with_the_line_search_capped_at_4_matches_the_host_task():
+    """`--device-solver 100,4` (Hopper's default since issue 56): against MuJoCo C's XML solver,
+    within the bound of the XML's own solver (C stops at its tolerance on one lane) and, with
+    C's solver converged (tolerance 1e-10), every lane to 1e-8; the same terminations."""
+    import jax
+
+    with jax.enable_x64(True):
+        capped = build("hopper", solver=(100, 4))
+        result = check_against_host(capped, 2 * 9.65e-8)
+        assert result.termination_mismatches == 0 and result.terminations > 3
+        models = [env.unwrapped.model for env in capped.envs]
+        for m in models:
+            m.opt.tolerance = 1e-10
+        result = check_against_host(capped, 1e-8)
+    assert result.termination_mismatches == 0 and result.terminations > 3

@@ -141,3 +141,15 @@ def test_a_ring_holds_each_seeds_next_episodes_as_the_host_env_compiles_them(dyn
     ring.fill([4, 4])
     same = np.array_equal(ring.fields["geom_size"][0], ring.fields["geom_size"][1])
     assert same == (dynamics == "paper")  # uniform: each seed its own draws
+
+
+def test_refill_names_the_rows_it_rewrote():
+    """`PhysicsRing.refill`: the (seed, slot) pairs whose episode changed, the only rows the
+    device learner copies to the device."""
+    from adarl.device.physics import PhysicsRing, physics_table
+
+    ring = PhysicsRing(physics_table("hopper", "paper"), (3, 8), 4)
+    assert len(ring.refill([0, 0])) == 8  # a fresh ring: every row
+    # seed 0 moves on by one episode (4 into slot 0), seed 1 by three (4, 5, 6 into 0, 1, 2)
+    assert ring.refill([1, 3]).tolist() == [[0, 0], [1, 0], [1, 1], [1, 2]]
+    assert len(ring.refill([1, 3])) == 0

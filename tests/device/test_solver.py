@@ -39,3 +39,42 @@ def test_a_capped_task_runs_a_copy_with_the_caps():
     assert (int(host.opt.iterations), int(host.opt.ls_iterations)) == xml  # the caller's model
     plain = make("walker2d", mj_model=host)
     assert (plain.model.opt.iterations, plain.model.opt.ls_iterations) == xml
+
+
+def test_the_capped_solver_is_the_default_exactly_where_a_capped_comparison_passes():
+    """`default_solver`: `100,4` for the tasks whose test module compares the capped device task
+    with MuJoCo C in float64 (a `solver=(100, 4)` build: Hopper, Walker2d), `xml` elsewhere."""
+    from pathlib import Path
+
+    from adarl.device.tasks import RULES, default_solver
+
+    here = Path(__file__).parent
+    for task in RULES:
+        compared = "solver=(100, 4)" in (here / f"test_{task}.py").read_text()
+        assert (default_solver(task) == "100,4") == compared, task
+    assert [t for t in RULES if default_solver(t) == "100,4"] == ["hopper", "walker2d"]
+
+
+@pytest.mark.parametrize(
+    ("flags", "solver"),
+    [
+        ({"backend": "device", "task": "hopper"}, "100,4"),
+        ({"backend": "device", "task": "walker2d"}, "100,4"),
+        ({"backend": "device", "task": "ant"}, "xml"),
+        ({"backend": "device", "task": "humanoid"}, "xml"),
+        ({"backend": "device", "task": "hopper", "device_solver": "xml"}, "xml"),
+        ({"backend": "device", "task": "ant", "device_solver": "100,4"}, "100,4"),
+        ({"task": "hopper"}, "xml"),  # the host backend: the field as it always was
+    ],
+)
+def test_a_device_run_gets_its_tasks_default_solver_unless_it_names_one(flags, solver):
+    from adarl.algos import registry
+
+    assert registry.resolve_config("adarl", None, flags).device_solver == solver
+
+
+def test_rnac_on_the_device_is_refused_in_one_line_saying_why():
+    from adarl.algos import registry
+
+    with pytest.raises(UsageError, match=r"^rnac trains on the host backend only: .*SAC family$"):
+        registry.resolve_config("rnac", None, {"backend": "device"})

@@ -287,3 +287,49 @@ def test_a_sigkilled_device_run_resumes_to_the_uninterrupted_runs_bits(tmp_path)
     assert sorted(a.files) == sorted(b.files)
     for key in a.files:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_the_device_evaluation_is_logged_beside_the_hosts(full_run):
+    """eval_device.csv (the device evaluation, written by the loop while the host evaluates)
+    has a row for every row of eval.csv: the same steps, seeds, dynamics and episodes, with
+    lengths within the time limit."""
+    from adarl.runs.logs import EVAL_COLUMNS
+    from adarl.train.device_learner import DEVICE_EVAL_COLUMNS
+
+    assert DEVICE_EVAL_COLUMNS == EVAL_COLUMNS
+    device = read_csv(full_run / "eval_device.csv")
+    host = read_csv(full_run / "eval.csv")
+    keys = ("step", "seed", "dynamics", "episode")
+    assert [tuple(r[k] for k in keys) for r in device] == [tuple(r[k] for k in keys) for r in host]
+    assert {int(r["step"]) for r in device} == {600, 1_200}
+    assert all(1 <= int(r["length"]) <= BUDGET["max_episode_steps"] for r in device)
+
+
+def test_the_device_evaluation_is_each_seeds_deterministic_policy_from_its_own_resets(learner):
+    """`sac_device.evaluate` over both seeds and 2 episodes, 6 steps at most, against the same
+    episodes run one at a time: reset from ``fold_in(eval_key(seed), k)``, the policy file's
+    action (NumPy), the task stepped alone."""
+    import functools
+
+    from adarl.algos import sac_device
+    from adarl.train.device_learner import device_task
+
+    learner.fresh()
+    task = device_task("hopper", "default", learner.config.device_solver)
+    spec, max_steps, n_episodes = learner.spec, 6, 2
+    evaluate = jax.jit(functools.partial(sac_device.evaluate, spec, task, max_steps, n_episodes))
+    actor, masks = learner.state["actor"], learner.state["masks"]["actor"]
+    returns, lengths = jax.device_get(evaluate(actor, masks, learner.eval_keys, {}))
+    reset, step = jax.jit(task.reset), jax.jit(task.step)
+    for i, seed in enumerate(learner.seeds):
+        policy = NumpyPolicy(learner.policies()[i])
+        for k in range(n_episodes):
+            state = reset(jax.random.fold_in(sac_device.eval_key(seed), k))
+            obs, total, length = np.asarray(task.observation(state.data)), 0.0, 0
+            while length < max_steps:
+                state, obs, reward, terminated, _ = step(state, policy(obs[None])[0])
+                obs, total, length = np.asarray(obs), total + float(reward), length + 1
+                if bool(terminated):
+                    break
+            assert lengths[i, k] == length, (seed, k)
+            np.testing.assert_allclose(returns[i, k], total, rtol=1e-5, atol=1e-5)

@@ -1,8 +1,10 @@
 """Per-episode physics on the device backend (`--dynamics paper`; `PhysicsRing` in
 `adarl.device.physics`, read by `adarl.train.device_learner`) on CPU, tiny (2 seeds, 600 steps,
-(32, 32) networks, 10-step chunks and 7-step episodes, so each seed's ring of 11 rows wraps
-often and episodes start anywhere in a chunk): every episode runs the model the host env compiles for it, episodes.csv records the host env's parameters, and a run
-killed between two checkpoints and resumed equals an uninterrupted one. One config, so every
+(32, 32) networks, 10-step chunks and 7-step episodes, so each seed's ring of 21 rows wraps
+often and episodes start anywhere in a chunk): every episode runs the model the host env
+compiles for it, though chunk k+1 is dispatched before chunk k's episodes are read, the ring is
+refilled row by row, episodes.csv records the host env's parameters, and a run killed between
+two checkpoints and resumed equals an uninterrupted one. One config, so every
 test uses the same compiled chunk (a compile takes 30-130 s on these CPUs)."""
 
 import copy
@@ -101,32 +103,90 @@ def _csv(run, name):
 
 
 def check_every_episode_runs_the_host_model(learner, host, steps: int) -> None:
-    """Chunk by chunk from a fresh start: the device ring holds, in slot e mod (update_every +
-    1), the host model's fields of every episode e that ran in the chunk; the task state at the
-    chunk's end carries those of the episode then running; each ended episode reports the host
-    env's parameters; and every seed's ring wrapped."""
+    """Chunk by chunk from a fresh start (each advance runs several): the device table each
+    chunk is dispatched with holds, in slot e mod (2 update_every + 1), the host model's
+    fields of every episode e that runs in that chunk, though it was filled before the chunk
+    before it had ended; the task state at each advance's end carries those of the episode
+    then running; each ended episode reports the host env's parameters; and every seed's ring
+    wrapped."""
+    import dataclasses
+
+    from adarl.train.device_learner import ring_slots
+
     learner.fresh()
     shapes = learner.physics.table.shapes
-    slots = learner.config.update_every + 1
+    slots = ring_slots(learner.config)
+    dispatched = []  # (episodes at the chunk's start, the table it was given)
+    chunk = learner.fns.chunk
+
+    def recording(n_steps, state, env, table, *args):
+        dispatched.append((np.asarray(jax.device_get(env["episode"])), jax.device_get(table)))
+        return chunk(n_steps, state, env, table, *args)
+
+    learner.fns = dataclasses.replace(learner.fns, chunk=recording)
     step = 0
-    while step < steps:
-        first = learner.episodes.copy()
-        advance = learner.advance(step)
-        step = advance.step
-        table = jax.device_get(learner.table)
-        running = jax.device_get(learner.env["task"].fields)
+    try:
+        while step < steps:
+            advance = learner.advance(step)
+            step = advance.step
+            running = jax.device_get(learner.env["task"].fields)
+            for i, episodes in enumerate(host):
+                for name, shape in shapes.items():
+                    expected = episodes.field(int(learner.episodes[i]), name, shape)
+                    np.testing.assert_array_equal(running[name][i], expected, name)
+            for episode in advance.episodes:
+                index = episode.info["episode_index"]
+                assert episode.info["dynamics"] == host[episode.index].episode(index)[1]
+    finally:
+        learner.fns = dataclasses.replace(learner.fns, chunk=chunk)
+    assert len(dispatched) > 2 * (steps // 200 + 1)  # advances of several chunks
+    ends = [first for first, _ in dispatched[1:]] + [learner.episodes]
+    for (first, table), last in zip(dispatched, ends, strict=True):
         for i, episodes in enumerate(host):
-            for e in range(first[i], learner.episodes[i] + 1):
+            for e in range(first[i], last[i] + 1):
                 for name, shape in shapes.items():
                     expected = episodes.field(e, name, shape)
                     np.testing.assert_array_equal(table[name][i, e % slots], expected, name)
-            for name, shape in shapes.items():
-                expected = episodes.field(int(learner.episodes[i]), name, shape)
-                np.testing.assert_array_equal(running[name][i], expected, name)
-        for episode in advance.episodes:
-            index = episode.info["episode_index"]
-            assert episode.info["dynamics"] == host[episode.index].episode(index)[1]
     assert min(learner.episodes) > slots
+
+
+def test_chunk_k_plus_1_is_dispatched_before_chunk_ks_episodes_are_read(learner, monkeypatch):
+    """Within an advance the host reads what ended in a chunk only after the next chunk is
+    queued, and refills the device's ring by the rows that changed, never the whole ring."""
+    import dataclasses
+
+    from adarl.train import device_learner
+
+    learner.fresh()
+    events, uploads = [], []
+    chunk, read, upload = learner.fns.chunk, device_learner.read_ended, learner.upload_rows
+
+    def recording(n_steps, state, env, table, step, update):
+        events.append(("dispatch", int(step)))
+        return chunk(n_steps, state, env, table, step, update)
+
+    def reading(ended):
+        events.append(("read", None))
+        return read(ended)
+
+    def uploading(stale):
+        uploads.append(len(stale))
+        return upload(stale)
+
+    monkeypatch.setattr(device_learner, "read_ended", reading)
+    monkeypatch.setattr(learner, "upload_rows", uploading)
+    learner.fns = dataclasses.replace(learner.fns, chunk=recording)
+    try:
+        advance = learner.advance(0)
+    finally:
+        learner.fns = dataclasses.replace(learner.fns, chunk=chunk)
+    kinds = [kind for kind, _ in events]
+    n = kinds.count("dispatch")
+    assert n == advance.step // learner.config.update_every > 2
+    assert kinds == ["dispatch", "dispatch"] + ["read", "dispatch"] * (n - 2) + ["read"] * 2
+    slots = learner.physics.slots
+    assert uploads and all(0 < u <= learner.n * learner.config.update_every for u in uploads)
+    assert max(uploads) < learner.n * slots
 
 
 def test_every_episode_runs_the_model_the_host_env_compiles_for_it(learner, host):
@@ -153,6 +213,7 @@ def test_ant_and_humanoid_under_paper_run_the_host_envs_gravity_and_wind(task):
     from adarl.train.device_learner import DeviceSACLearner
 
     budget = BUDGET | {"task": task, "total_steps": 100, "start_steps": 100, "update_after": 100}
+    budget |= {"update_every": 5}  # rings of 11 rows, which 100 steps of 7-step episodes wrap
     learner = DeviceSACLearner(registry.resolve_config("sac", "smoke", budget))
     assert sorted(learner.physics.table.shapes) == ["opt.gravity", "opt.wind"]
     host = [HostEpisodes(task, "paper", s) for s in budget["seeds"]]
@@ -193,7 +254,7 @@ def test_killed_and_resumed_run_equals_an_uninterrupted_one(config, learner, ful
         checkpoints.save_checkpoint = original
     with np.load(saved[0] / "arrays.npz") as arrays:
         at_crash = arrays["env_device['episode']"]
-    assert np.all(at_crash > config.update_every + 1)  # restored rings are past a wrap
+    assert np.all(at_crash > 2 * config.update_every + 1)  # restored rings are past a wrap
     algo, config_back = folder.config_from_run(run)
     assert (algo, config_back) == ("sac", config)
     train(config_back, run, resume=True, progress=False)
