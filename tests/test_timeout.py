@@ -33,7 +33,7 @@ def test_hangs_in_c_after_taking_sigterm():
 def test_the_suite_has_a_timeout_that_stops_a_hung_in_process_test(tmp_path):
     settings = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]
     options = settings["ini_options"]
-    assert 0 < int(options["timeout"]) <= 900  # the whole suite stays under 15 minutes
+    assert 600 < int(options["timeout"]) <= 1800  # above the slowest test's own 600 s wait
     (tmp_path / "test_hang.py").write_text(HANGING_TEST)
     done = subprocess.run(
         [sys.executable, "-m", "pytest", "test_hang.py", "-c", str(ROOT / "pyproject.toml")]
