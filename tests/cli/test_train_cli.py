@@ -56,7 +56,8 @@ from adarl.cli.train import add_arguments, build_config
         ),
         (
             ["--backend", "device", "--device-solver", "0,4"],
-            "device-solver must be 'xml' or 'ITERATIONS,LS_ITERATIONS' (integers >= 1, e.g. 1,4), "
+            "device-solver must be 'xml' or 'ITERATIONS,LS_ITERATIONS' (integers from 1 to 10,000, "
+            "e.g. 100,4), "
             "got '0,4'",
         ),
         (
