@@ -10,8 +10,10 @@ time, and the memory used.
 Each measurement builds the learner the one loop would (`trainers.make_learner`, the config
 `adarl train --algo adarl --backend device --task T --dynamics D --seeds 0-(N-1)` resolves to, with
 `start_steps` = `update_after` = one chunk so that every timed chunk updates), calls `advance` once
-to compile and fill one chunk, then times `--chunks` more advances (each at least one chunk) of `update_every` env steps and
-`update_every` gradient steps each, for all seeds at once. Prints one CSV line per measurement:
+to compile and fill one chunk, then times `--chunks` more chunks of `update_every` env steps and
+`update_every` gradient steps each, for all seeds at once (on the device up to
+`device_learner.MAX_CHUNKS` per advance, chunk k+1 dispatched before chunk k's episodes are
+read, as in training). Prints one CSV line per measurement:
 
     task,dynamics,solver,backend,platform,seeds,chunk_steps,compile_s,chunk_s,seed_steps_per_s,update_ms,memory_mb
 
@@ -83,6 +85,7 @@ def memory_mb() -> float:
 def measure(args, backend: str, n_seeds: int) -> str:
     import jax
 
+    from adarl.train import device_learner
     from adarl.train.trainers import make_learner
 
     chunks, update_every = args.chunks, args.update_every
@@ -100,18 +103,25 @@ def measure(args, backend: str, n_seeds: int) -> str:
     learner.fresh()
     progress(f"{n_seeds} seeds: built in {time.perf_counter() - begin:.1f} s")
     step = 0
-    start = time.perf_counter()
-    step = learner.advance(step).step  # compiles, fills the first chunk
-    jax.block_until_ready(getattr(learner, "state", None))
-    compile_s = time.perf_counter() - start
-    progress(f"{n_seeds} seeds: compiled and ran the first chunk in {compile_s:.1f} s")
-    start, first = time.perf_counter(), step
-    for k in range(chunks):  # an advance may cover several chunks (up to the loop's next event)
-        before = time.perf_counter()
-        step = learner.advance(step).step  # returns the chunk's episodes: the host has waited
-        progress(
-            f"{n_seeds} seeds: advance {k + 1} to step {step} in {time.perf_counter() - before:.3f} s"
-        )
+    most = device_learner.MAX_CHUNKS  # a device advance runs up to this many chunks
+    device_learner.MAX_CHUNKS = 1
+    try:
+        start = time.perf_counter()
+        step = learner.advance(step).step  # compiles, fills the first chunk
+        jax.block_until_ready(getattr(learner, "state", None))
+        compile_s = time.perf_counter() - start
+        progress(f"{n_seeds} seeds: compiled and ran the first chunk in {compile_s:.1f} s")
+        start, first, k = time.perf_counter(), step, 0
+        while step - first < chunks * update_every:  # `chunks` chunks, pipelined as in training
+            device_learner.MAX_CHUNKS = min(most, chunks - (step - first) // update_every)
+            before, k = time.perf_counter(), k + 1
+            step = learner.advance(step).step  # returns its episodes: the host has waited
+            progress(
+                f"{n_seeds} seeds: advance {k} to step {step} in "
+                f"{time.perf_counter() - before:.3f} s"
+            )
+    finally:
+        device_learner.MAX_CHUNKS = most
     jax.block_until_ready(getattr(learner, "state", None))
     run_s = time.perf_counter() - start
     chunk_s = run_s * update_every / (step - first)

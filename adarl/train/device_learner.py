@@ -326,7 +326,7 @@ class DeviceSACLearner:
         self.truncation_steps = set(schedule.truncation_steps(config))
         memory = (
             self.n,
-            config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
+            self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
             self.n * sac.state_bytes(self.spec)
             + sum(v.nbytes for v in self.physics.fields.values()),
             f"lower --buffer-size ({config.buffer_size}) or --hidden "
