@@ -242,9 +242,7 @@ def check_device_solver(value: str) -> None:
     if value == "xml" or (
         len(parts) == 2
         and all(
-            p.strip().isascii()
-            and p.strip().isdigit()
-            and 1 <= int(p) <= MAX_SOLVER_ITERATIONS
+            p.strip().isascii() and p.strip().isdigit() and 1 <= int(p) <= MAX_SOLVER_ITERATIONS
             for p in parts
         )
     ):

@@ -249,7 +249,8 @@ def _print_gym(task) -> None:
 
 def _elements(task) -> list[tuple[str, str, list[str]]]:
     """(kind, its attributes as text, the element names; bodies with their masses in kg)."""
-    from adarl.envs.elements import ATTRS, address_default, element_names
+    from adarl.envs.elements import address_default, element_names
+    from adarl.envs.params import ATTRS
 
     out = []
     for kind, names in element_names(task.xml_path).items():

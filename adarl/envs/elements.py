@@ -32,13 +32,11 @@ from __future__ import annotations
 
 import functools
 import math
-import re
 import sys
-from dataclasses import dataclass
 
 import numpy as np
 
-from adarl.envs.params import is_addressed
+from adarl.envs.params import Address, is_addressed, parse_address
 from adarl.errors import UsageError
 
 #: Generic parameters at their no-change values (gravity's default is the model's |g|).
@@ -50,73 +48,6 @@ GENERIC_SCALES = {
 }
 #: Air, added with `wind` where a model has no medium (density kg/m^3, viscosity Pa s).
 AIR = (1.2, 2e-5)
-
-
-@dataclass(frozen=True)
-class Attr:
-    """One addressable attribute: its unit, meaning, lower bound, whether the bound is strict,
-    and how many components [i] it has (1: no index)."""
-
-    unit: str
-    meaning: str
-    lower: float
-    strict: bool
-    size: int = 1
-
-
-ATTRS: dict[str, dict[str, Attr]] = {
-    "body": {"mass": Attr("kg", "mass of the body (inertia follows)", 0.0, True)},
-    "geom": {
-        "friction": Attr(
-            "", "friction coefficient (0 sliding, 1 torsional, 2 rolling)", 0.0, False, 3
-        ),
-        "size": Attr("m", "geom size", 0.0, True, 3),
-    },
-    "joint": {
-        "damping": Attr("N m s/rad", "joint damping", 0.0, False),
-        "stiffness": Attr("N m/rad", "joint stiffness", 0.0, False),
-        "armature": Attr("kg m^2", "joint armature", 0.0, False),
-        "frictionloss": Attr("N m", "joint dry friction", 0.0, False),
-    },
-    "actuator": {"gear": Attr("", "actuator gear (strength)", 0.0, True)},
-}
-SYNTAX = "KIND:NAME.ATTR[i] with " + "; ".join(
-    f"{kind}: {', '.join(attrs)}" for kind, attrs in ATTRS.items()
-)
-_ADDRESS = re.compile(r"^(body|geom|joint|actuator):(.+)\.([a-z]+)(?:\[(\d+)\])?$")
-
-
-@dataclass(frozen=True)
-class Address:
-    """A parsed addressed parameter name."""
-
-    kind: str
-    element: str
-    attr: str
-    index: int
-
-    @property
-    def info(self) -> Attr:
-        return ATTRS[self.kind][self.attr]
-
-
-def parse_address(name: str) -> Address:
-    """`KIND:NAME.ATTR[i]` -> `Address`, or a one-line `UsageError` saying what is allowed."""
-    match = _ADDRESS.match(name.strip()) if isinstance(name, str) else None
-    if not match:
-        raise UsageError(f"malformed parameter {name!r}; allowed: {SYNTAX}")
-    kind, element, attr, index = match.groups()
-    if attr not in ATTRS[kind]:
-        raise UsageError(
-            f"unknown attribute {attr!r} in {name!r}; allowed for {kind}: {', '.join(ATTRS[kind])}"
-        )
-    i = int(index) if index is not None else 0
-    if i >= ATTRS[kind][attr].size:
-        allowed = (
-            "no index" if ATTRS[kind][attr].size == 1 else f"[0] to [{ATTRS[kind][attr].size - 1}]"
-        )
-        raise UsageError(f"bad index [{i}] in {name!r}; allowed: {allowed}")
-    return Address(kind, element, attr, i)
 
 
 @functools.lru_cache(maxsize=1)
@@ -390,6 +321,14 @@ def _bake_total_mass(spec) -> None:
         body.mass, body.inertia = body.mass * scale, np.array(body.inertia) * scale
 
 
+def strip_textures(spec) -> None:
+    """Remove all textures (visual only) so that compiling skips generating them."""
+    for material in spec.materials:
+        material.textures = [""] * len(material.textures)
+    while spec.textures:
+        spec.delete(spec.textures[0])
+
+
 class GenericBuilder:
     """Compiles `MjModel`s of any MuJoCo XML at generic and addressed parameters (the builder of
     every task outside the paper's four; `adarl.envs.model.ModelBuilder` is the paper's)."""
@@ -397,11 +336,9 @@ class GenericBuilder:
     def __init__(self, xml_path: str, textures: bool = True):
         import mujoco
 
-        from adarl.envs.model import _strip_textures
-
         self.spec = mujoco.MjSpec.from_file(xml_path)
         if not textures:
-            _strip_textures(self.spec)
+            strip_textures(self.spec)
         self.editor = ElementEditor(self.spec, xml_path)
         self.editor.touched = True  # the first apply writes every field
 

@@ -37,7 +37,7 @@ import mujoco
 import numpy as np
 from gymnasium.envs.mujoco.mujoco_env import expand_model_path
 
-from adarl.envs.elements import ElementEditor
+from adarl.envs.elements import ElementEditor, strip_textures
 from adarl.envs.params import is_addressed
 from adarl.envs.tasks import PHYSICS, TaskSpec, get_task
 from adarl.errors import check_choice
@@ -101,7 +101,7 @@ class ModelBuilder:
         self.task = task if isinstance(task, TaskSpec) else get_task(task)
         self.spec = mujoco.MjSpec.from_file(xml_path or _xml_path(self.task))
         if not textures:
-            _strip_textures(self.spec)
+            strip_textures(self.spec)
         self._base = _Snapshot(self.spec, self.task)
         self._elements = ElementEditor(self.spec, xml_path or _xml_path(self.task))
         self._applied: dict[str, float] | None = None  # what self.spec holds now
@@ -382,11 +382,3 @@ def _set_feet(base: _Snapshot, length: float, untouched: bool) -> None:
     """Every foot capsule gets half-length F about its unchanged centre (as OMPO)."""
     for geom, size in base.feet:
         geom.size = size if untouched else [size[0], length, size[2]]
-
-
-def _strip_textures(spec: mujoco.MjSpec) -> None:
-    """Remove all textures (visual only) so that compiling skips generating them."""
-    for material in spec.materials:
-        material.textures = [""] * len(material.textures)
-    while spec.textures:
-        spec.delete(spec.textures[0])

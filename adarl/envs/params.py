@@ -7,6 +7,7 @@ checked here, before any MuJoCo model is built, and rejected with a one-line `Us
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 from adarl.errors import UsageError
@@ -93,13 +94,78 @@ def is_addressed(name) -> bool:
     )
 
 
+@dataclass(frozen=True)
+class Attr:
+    """One addressable attribute: its unit, meaning, lower bound, whether the bound is strict,
+    and how many components [i] it has (1: no index)."""
+
+    unit: str
+    meaning: str
+    lower: float
+    strict: bool
+    size: int = 1
+
+
+ATTRS: dict[str, dict[str, Attr]] = {
+    "body": {"mass": Attr("kg", "mass of the body (inertia follows)", 0.0, True)},
+    "geom": {
+        "friction": Attr(
+            "", "friction coefficient (0 sliding, 1 torsional, 2 rolling)", 0.0, False, 3
+        ),
+        "size": Attr("m", "geom size", 0.0, True, 3),
+    },
+    "joint": {
+        "damping": Attr("N m s/rad", "joint damping", 0.0, False),
+        "stiffness": Attr("N m/rad", "joint stiffness", 0.0, False),
+        "armature": Attr("kg m^2", "joint armature", 0.0, False),
+        "frictionloss": Attr("N m", "joint dry friction", 0.0, False),
+    },
+    "actuator": {"gear": Attr("", "actuator gear (strength)", 0.0, True)},
+}
+SYNTAX = "KIND:NAME.ATTR[i] with " + "; ".join(
+    f"{kind}: {', '.join(attrs)}" for kind, attrs in ATTRS.items()
+)
+_ADDRESS = re.compile(r"^(body|geom|joint|actuator):(.+)\.([a-z]+)(?:\[(\d+)\])?$")
+
+
+@dataclass(frozen=True)
+class Address:
+    """A parsed addressed parameter name."""
+
+    kind: str
+    element: str
+    attr: str
+    index: int
+
+    @property
+    def info(self) -> Attr:
+        return ATTRS[self.kind][self.attr]
+
+
+def parse_address(name: str) -> Address:
+    """`KIND:NAME.ATTR[i]` -> `Address`, or a one-line `UsageError` saying what is allowed."""
+    match = _ADDRESS.match(name.strip()) if isinstance(name, str) else None
+    if not match:
+        raise UsageError(f"malformed parameter {name!r}; allowed: {SYNTAX}")
+    kind, element, attr, index = match.groups()
+    if attr not in ATTRS[kind]:
+        raise UsageError(
+            f"unknown attribute {attr!r} in {name!r}; allowed for {kind}: {', '.join(ATTRS[kind])}"
+        )
+    i = int(index) if index is not None else 0
+    if i >= ATTRS[kind][attr].size:
+        allowed = (
+            "no index" if ATTRS[kind][attr].size == 1 else f"[0] to [{ATTRS[kind][attr].size - 1}]"
+        )
+        raise UsageError(f"bad index [{i}] in {name!r}; allowed: {allowed}")
+    return Address(kind, element, attr, i)
+
+
 def param_info(name: str) -> Param:
     """The `Param` of a named parameter, or of an addressed one (its attribute's bound)."""
     if name in PARAMS:
         return PARAMS[name]
     if is_addressed(name):
-        from adarl.envs.elements import parse_address
-
         info = parse_address(name).info
         return Param(name, info.unit, info.meaning, info.lower, info.strict)
     raise UsageError(f"unknown parameter {name!r}")

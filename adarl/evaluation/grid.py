@@ -87,7 +87,7 @@ def check_name(name: str, what: str) -> None:
     from adarl.envs.params import is_addressed
 
     if is_addressed(name):
-        from adarl.envs.elements import parse_address
+        from adarl.envs.params import parse_address
 
         try:
             parse_address(name)
@@ -106,7 +106,7 @@ def parameter_key(name: str):
     from adarl.envs.params import is_addressed
 
     if is_addressed(name):
-        from adarl.envs.elements import parse_address
+        from adarl.envs.params import parse_address
 
         return parse_address(name)
     return name

@@ -27,11 +27,13 @@ from adarl.train import sac_learner
         (["--algo", "rnac", "--model-version", "v6"], "unknown model version 'v6'"),
         (
             ["--task", "gym:Pendulum-v1", "--dynamics", "default", "--physics", "ompo"],
-            "task 'gym:Pendulum-v1' with physics 'ompo' and model version 'v5' does not exist",
+            "physics 'ompo' applies to hopper, walker2d, ant, humanoid; "
+            "allowed for task 'gym:Pendulum-v1': consistent",
         ),
         (
             ["--task", "gym:Pendulum-v1", "--dynamics", "default", "--model-version", "v4"],
-            "allowed: physics 'consistent' and version 'v5' for gym: tasks",
+            "model version 'v4' applies to hopper, walker2d, ant, humanoid; "
+            "allowed for 'gym:Pendulum-v1': v5",
         ),
     ],
 )
