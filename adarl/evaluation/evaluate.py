@@ -263,6 +263,11 @@ def check_not_smaller(path: Path, episodes: int) -> None:
         )
 
 
+def sidecar_path(path: Path) -> Path:
+    """The JSON sidecar beside an evaluation CSV (same stem): what `write_evaluation` writes last."""
+    return Path(path).with_suffix(".json")
+
+
 def write_evaluation(
     table: pd.DataFrame,
     path: Path,
@@ -291,7 +296,7 @@ def write_evaluation(
         "seeds": sorted(int(s) for s in table["seed"].unique()),
         "command": command,
     } | dict(extra or {})
-    atomic_write_json(path.with_suffix(".json"), meta)
+    atomic_write_json(sidecar_path(path), meta)
     return path
 
 

@@ -36,3 +36,14 @@ def test_a_special_output_folder_is_refused(tmp_path, capsys):
         one_line_exit_2(
             ["train", "--preset", "smoke", "--out", str(path)], capsys, f"is {kind}; give a folder"
         )
+
+
+def test_a_special_json_sidecar_is_refused_before_evaluating(tmp_path, capsys):
+    """`--out X.csv` writes X.json last: a FIFO there is refused before any episode runs, so no
+    CSV is written without its sidecar."""
+    run = write_run(tmp_path, "r", seeds=(0,))
+    out = tmp_path / "table.csv"
+    os.mkfifo(tmp_path / "table.json")
+    argv = ["evaluate", str(run), "--out", str(out), "--episodes", "1", "--max-episode-steps", "5"]
+    one_line_exit_2(argv, capsys, "--out's JSON sidecar")
+    assert not out.exists() and os.path.exists(tmp_path / "table.json")
