@@ -131,7 +131,10 @@ def test_a_users_module_and_xml(tmp_path, capsys):
         (["--env-kwargs", "xml_file=a.xml"], "applies to a named Gymnasium id"),
         (["hopper", "--env-kwargs", "xml_file=a.xml"], "apply to Gymnasium ids, not to task"),
         (["--env-module", "no_such_module_here"], "cannot import env-module"),
-        (["HalfCheetah-v5", "--env-kwargs", "xml_file=/nowhere.xml"], "cannot make env 'HalfCheetah-v5' (OSError: File /nowhere.xml"),
+        (
+            ["HalfCheetah-v5", "--env-kwargs", "xml_file=/nowhere.xml"],
+            "cannot make env 'HalfCheetah-v5' (OSError: File /nowhere.xml",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, argv, fragment):
