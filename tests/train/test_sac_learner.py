@@ -76,12 +76,10 @@ class Crash(Exception):
     ids=["cumulative", "energy-retain"],
 )
 def test_resume_after_a_crash_gives_the_same_results(tmp_path, monkeypatch, rank_settings):
-    config = smoke_config(
-        seeds=(0, 1, 2), total_steps=2_000, checkpoint_every=1_000, **rank_settings
-    )
+    config = smoke_config(seeds=(0, 1), total_steps=2_000, checkpoint_every=1_000, **rank_settings)
     trainers.train(config, tmp_path / "full", progress=False)
     cuts = read_csv(tmp_path / "full" / "truncations.csv")
-    assert len(cuts) == schedule.n_truncations(config) * 3 * 3  # truncations × layers × seeds
+    assert len(cuts) == schedule.n_truncations(config) * 3 * 2  # truncations × layers × seeds
     decisions = {row["decision"] for row in cuts}
     assert decisions <= {"accepted", "retained", "unchanged"}
     if "retain_tolerance" in rank_settings:  # the retain clause refuses some of the cuts
