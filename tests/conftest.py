@@ -62,8 +62,8 @@ def local_ray_turn():
 # The device backend's longest tests: each trains or steps MJX on a CPU, where one compile takes
 # a minute or more (seconds a test, measured 2026-12-07 in the suite beside the campaign, 2 workers,
 # cold compile cache; together 1,655 s of the suite's 3,250). They leave the default run, which
-# must stay under 15 minutes on two cores, and run with `pytest -m mjx` (about 25 minutes on
-# two cores) and on an accelerator. The default run keeps a device resume
+# must stay under 15 minutes on two cores, and run with `pytest -m mjx` (not timed
+# alone) and on an accelerator. The default run keeps a device resume
 # (test_device_learner's killed-and-resumed run), the host parity of Hopper under four physics,
 # the float32 check and the accelerator script's budget.
 MJX_LONG = {
