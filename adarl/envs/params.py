@@ -94,6 +94,8 @@ def is_addressed(name) -> bool:
     )
 
 
+# The addressed names' grammar, `KIND:NAME.ATTR[i]`, and each attribute's bound: here, below the
+# model code, so that checking a name needs no MuJoCo (adarl.envs.elements writes the values).
 @dataclass(frozen=True)
 class Attr:
     """One addressable attribute: its unit, meaning, lower bound, whether the bound is strict,
