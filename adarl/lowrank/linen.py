@@ -16,13 +16,15 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from adarl.lowrank import apply_factorised, rank_mask
+from adarl.lowrank import _count, apply_factorised, rank_mask
 
 
 class FactorisedDense(nn.Module):
     """x ↦ x·W1·diag(mask)·W2 + b with W1 (n_in × d), W2 (d × features), d = `width` (masked)
     or `rank` (compact), initialised as PyTorch's nn.Linear(n_in, r, bias=False) followed by
-    nn.Linear(r, features) (the bottleneck of the paper's appendix)."""
+    nn.Linear(r, features) (the bottleneck of the paper's appendix). `features` and `rank` are
+    integers ≥ 1, `width` -1, None or an integer ≥ `rank`; else a ValueError at the first call
+    (as `adarl.lowrank.init_factorised`)."""
 
     features: int
     rank: int
@@ -32,9 +34,12 @@ class FactorisedDense(nn.Module):
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
+        _count(self.features, "features", 1)
+        r = _count(self.rank, "rank", 1)
+        d = r if self.width is None or self.width == -1 else _count(self.width, "width", 1)
+        if d < r:
+            raise ValueError(f"rank {r} exceeds width {d}; allowed: 1 <= rank <= width")
         n_in = x.shape[-1]
-        d = self.rank if self.width in (None, -1) else self.width
-        r = self.rank
 
         def uniform(bound):
             def init(key, shape, dtype=self.dtype):

@@ -48,6 +48,26 @@ def test_init_factorised_refuses_bad_sizes(kwargs, needle):
         lowrank.init_factorised(jax.random.PRNGKey(0), **args)
 
 
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        (dict(rank=0), "rank must be an integer >= 1, got 0"),
+        (dict(rank=-1, width=None), "rank must be an integer >= 1, got -1"),
+        (dict(rank=2.5), "rank must be an integer >= 1, got 2.5"),
+        (dict(rank=4, width=2), "rank 4 exceeds width 2; allowed: 1 <= rank <= width"),
+        (dict(rank=2, width=0), "width must be an integer >= 1, got 0"),
+        (dict(features=0), "features must be an integer >= 1, got 0"),
+    ],
+)
+def test_the_flax_layer_refuses_bad_sizes(kwargs, needle):
+    """As init_factorised: rank 0 gave biases of ±inf (0**-0.5), rank > width a layer of rank
+    `width` that reads as `rank`."""
+    linen = pytest.importorskip("adarl.lowrank.linen", reason="flax is not installed")
+    args = dict(features=3, rank=2) | kwargs
+    with pytest.raises(ValueError, match=needle.replace("(", r"\(").replace(")", r"\)")):
+        linen.FactorisedDense(**args).init(jax.random.PRNGKey(0), jnp.ones((1, 5)))
+
+
 @pytest.mark.parametrize("beta", [-0.5, 0.0, 1.5, math.nan, math.inf])
 def test_a_beta_outside_0_1_is_refused(beta):
     params = {"l": layer_from(np.random.default_rng(0), 6, 5, 4)}
