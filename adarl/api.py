@@ -50,6 +50,7 @@ class Run:
     @property
     def final_ranks(self) -> dict[str, float]:
         """Each bottleneck's rank in train.csv's last rows, mean over seeds ({} without one)."""
+        from adarl.runs import layout
         from adarl.runs.logs import read_csv
 
         rows = read_csv(self.path / "train.csv")
@@ -57,9 +58,9 @@ class Run:
             return {}
         last = max(int(r["step"]) for r in rows)
         final = [r for r in rows if int(r["step"]) == last]
-        columns = [c for c in final[0] if c.startswith("rank_")]
         return {
-            c.removeprefix("rank_"): sum(float(r[c]) for r in final) / len(final) for c in columns
+            layout.rank_layer(c): sum(float(r[c]) for r in final) / len(final)
+            for c in layout.rank_columns(final[0])
         }
 
     def summary(self) -> str:

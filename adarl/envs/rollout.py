@@ -24,7 +24,8 @@ def run_episodes(
     with `seed`, so the same policy, dynamics and seed give the same returns. Returns one dict per
     episode: `episode, return, length`, `distance` (forward displacement of the root body, x of
     `qpos`: a policy that only balances earns Hopper's healthy reward with a distance near 0) and
-    `p_<param>` for the episode's physical parameters.
+    `params`, the episode's physical parameters (name -> value; the evaluation tables' columns
+    `adarl.runs.layout.param_column`).
     `max_steps` (optional) cuts every episode after that many steps (for quick checks).
     """
     from adarl.envs import make
@@ -42,9 +43,11 @@ def run_episodes(
                 length += 1
                 done = terminated or truncated or (max_steps is not None and length >= max_steps)
             distance = _root_x(env) - start_x
-            row = {"episode": k, "return": total, "length": length, "distance": distance}
-            row.update({f"p_{name}": float(v) for name, v in info["dynamics"].items()})
-            rows.append(row)
+            params = {name: float(v) for name, v in info["dynamics"].items()}
+            rows.append(
+                {"episode": k, "return": total, "length": length, "distance": distance}
+                | {"params": params}
+            )
     finally:
         env.close()
     return rows

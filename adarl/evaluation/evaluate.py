@@ -27,6 +27,7 @@ from adarl.evaluation import grid
 from adarl.evaluation.parallel import run_units
 from adarl.files import atomic_write_json, atomic_write_text
 from adarl.results.runs import Run
+from adarl.runs import layout
 from adarl.runs.checkpoints import policy_files, select_checkpoint
 from adarl.runs.layout import EVALUATIONS_DIR, checkpoint_step
 
@@ -237,7 +238,7 @@ def _table(rows: list[dict]) -> pd.DataFrame:
     df = pd.DataFrame(rows)
     if df.empty:
         return pd.DataFrame(columns=COLUMNS)
-    params = sorted(c for c in df.columns if c.startswith("p_"))
+    params = sorted(layout.param_columns(df.columns))
     return df[COLUMNS + params]
 
 

@@ -16,9 +16,11 @@ from adarl.runtime import available_cores
 
 
 def run_unit(unit) -> list[dict]:
-    """Run one unit's episodes; rows carry `step, seed, dynamics` in front."""
+    """Run one unit's episodes; rows carry `step, seed, dynamics` in front and a column per
+    physical parameter (`layout.param_column`) at the end."""
     from adarl.envs.rollout import run_episodes
     from adarl.policy import load
+    from adarl.runs import layout
 
     policy = load(unit.policy_path)
     rows = run_episodes(
@@ -32,7 +34,11 @@ def run_unit(unit) -> list[dict]:
         **dict(unit.env),
     )
     head = {"step": unit.step, "seed": unit.seed, "dynamics": unit.label}
-    return [{**head, **row} for row in rows]
+    out = []
+    for row in rows:
+        params = {layout.param_column(n): v for n, v in row.pop("params").items()}
+        out.append({**head, **row, **params})
+    return out
 
 
 def run_units(

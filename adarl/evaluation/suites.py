@@ -41,6 +41,7 @@ import pandas as pd
 
 from adarl.errors import UsageError
 from adarl.evaluation import grid
+from adarl.runs import layout
 from adarl.runs.layout import EVALUATIONS_DIR, SUITES_DIR
 
 SUMMARY_COLUMNS = ["suite", "step", "seed", "points", "episodes", "worst", "average", "worst_point"]
@@ -273,7 +274,7 @@ def file_name(suite: str, checkpoint: int | None = None) -> str:
 def point_means(table: pd.DataFrame) -> pd.DataFrame:
     """Mean return over each point's episodes, per seed: columns `step, seed, dynamics, return`
     plus the point's `p_*` values, one row per seed and grid point (in the table's order)."""
-    params = [c for c in table.columns if c.startswith("p_")]
+    params = layout.param_columns(table.columns)
     keys = ["step", "seed", "dynamics", *params]
     return table.groupby(keys, sort=False, as_index=False)["return"].mean()
 

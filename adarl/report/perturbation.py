@@ -46,6 +46,7 @@ import pandas as pd
 
 from adarl import stats
 from adarl.errors import UsageError
+from adarl.runs import layout
 
 NORMS = ("max", "euclidean")
 #: Sizes closer than this are one size (grid values read back from CSV: 6 significant digits).
@@ -121,7 +122,7 @@ def ring_returns(
     lowest of their mean returns, and the worst within the ring's size (lowest over all points of
     a ring ≤ this one). `point_means`: one row per seed and grid point, columns `seed`, `return`
     (the point's mean over episodes, `suites.point_means`) and `p_<param>` for each of `params`."""
-    values = point_means[[f"p_{p}" for p in params]].to_numpy(float)
+    values = point_means[[layout.param_column(p) for p in params]].to_numpy(float)
     rings = assign_rings(perturbation_size(values, centre, half_range, norm), edges)
     data = point_means[["seed", "return"]].assign(ring=rings)
     rows = []

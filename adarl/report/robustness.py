@@ -23,6 +23,7 @@ from adarl.report.common import (
 )
 from adarl.results import collect
 from adarl.results.runs import Run, sort_methods, sort_tasks
+from adarl.runs import layout
 
 
 def worst_and_average(
@@ -42,7 +43,9 @@ def heatmap_grid(table: pd.DataFrame, x: str, y: str) -> tuple[np.ndarray, np.nd
     """(x values, y values, mean return over seeds of each seed's point mean, shape (ny, nx))
     of a two-parameter suite's table."""
     means = suites.point_means(table)
-    cells = means.groupby([f"p_{y}", f"p_{x}"])["return"].mean().unstack()
+    cells = (
+        means.groupby([layout.param_column(y), layout.param_column(x)])["return"].mean().unstack()
+    )
     return cells.columns.to_numpy(float), cells.index.to_numpy(float), cells.to_numpy(float)
 
 
@@ -51,10 +54,12 @@ def base_point(table: pd.DataFrame, parameter: str, dynamics: str | None) -> str
     value of every other parameter the episodes recorded (`p_*`; "varies" where not one value):
     `nominal dynamics; foot_length 0.39, thigh_length 0.45`."""
     others = []
-    for column in sorted(c for c in table.columns if c.startswith("p_") and c != f"p_{parameter}"):
+    for column in sorted(
+        set(layout.param_columns(table.columns)) - {layout.param_column(parameter)}
+    ):
         values = table[column].dropna().unique()
         value = f"{float(values[0]):.4g}" if len(values) == 1 else "varies"
-        others.append(f"{column[2:]} {value}")
+        others.append(f"{layout.param_name(column)} {value}")
     return f"{dynamics or 'nominal'} dynamics" + (f"; {', '.join(others)}" if others else "")
 
 
@@ -67,13 +72,9 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
         for ev in collect.evaluations(r):
             swept = ev.swept
             if not swept:
-                for c in ev.table.columns:
-                    if (
-                        c.startswith("p_")
-                        and ev.meta.get("dynamics") == "nominal"
-                        and not ev.meta.get("hold")
-                    ):
-                        nominal[(r.task, c[2:])] = float(ev.table[c].iloc[0])
+                for c in layout.param_columns(ev.table.columns):
+                    if ev.meta.get("dynamics") == "nominal" and not ev.meta.get("hold"):
+                        nominal[(r.task, layout.param_name(c))] = float(ev.table[c].iloc[0])
                 continue
             if len(swept) > 1:
                 if ev.meta.get("suite"):
@@ -247,7 +248,7 @@ def size_curves(
 
 
 def _swept_values(table: pd.DataFrame, param: str) -> np.ndarray:
-    column = f"p_{param}"
+    column = layout.param_column(param)
     if column in table:
         return table[column].to_numpy(float).round(9)
     pattern = re.compile(rf"(?:^|[:,]){re.escape(param)}=([^,]+)")

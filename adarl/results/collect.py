@@ -18,6 +18,7 @@ import pandas as pd
 from adarl.errors import UsageError, reason
 from adarl.files import UnreadableFile, read_json
 from adarl.results.runs import Run, config_value
+from adarl.runs import layout
 from adarl.runs.checkpoints import checkpoint_dirs, policy_files
 from adarl.runs.layout import (
     EPISODES_CSV,
@@ -334,13 +335,13 @@ def rank_history(run: Run) -> pd.DataFrame:
     logging points and, at the exact step of each truncation, its new rank (truncations.csv), so
     that a step plot changes where the rank did, not at the next logging point."""
     log = read_table(run.path / TRAIN_CSV)
-    columns = [c for c in log.columns if c.startswith("rank_")]
+    columns = layout.rank_columns(log.columns)
     if log.empty or not columns:
         return pd.DataFrame(columns=["step", "seed", "layer", "rank"])
     long = log.melt(
         id_vars=["step", "seed"], value_vars=columns, var_name="layer", value_name="rank"
     )
-    long["layer"] = long["layer"].str.removeprefix("rank_")
+    long["layer"] = long["layer"].map(layout.rank_layer)
     long = long.dropna(subset=["rank"])
     cuts = read_table(run.path / TRUNCATIONS_CSV)
     if not cuts.empty:

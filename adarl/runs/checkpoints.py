@@ -22,7 +22,7 @@ import numpy as np
 from adarl import __version__
 from adarl.errors import UsageError, reason
 from adarl.files import fs_errors, fsync_dir, json_default, read_json, temp_dir
-from adarl.runs import npz
+from adarl.runs import codec, npz
 from adarl.runs.layout import (
     ARRAYS_FILE,
     CHECKPOINT_DIR,
@@ -227,16 +227,24 @@ def config_record(config) -> dict:
     return json.loads(json.dumps(dataclasses.asdict(config), default=json_default))
 
 
-def checkpoint_meta(algo: str, config, seeds, rngs, env_states: list, csv_offsets: dict) -> dict:
-    """The keys every learner's checkpoint writes to meta.json (the loop adds its own, e.g.
-    `best`)."""
+def checkpoint_meta(algo: str, config, seeds, csv_offsets: dict) -> dict:
+    """The keys the loop writes to every checkpoint's meta.json (then the learner's own, from its
+    `checkpoint_state`, and the loop's `best`)."""
     return {
         "algo": algo,
         "seeds": [int(s) for s in seeds],
-        "rng_states": [rng.bit_generator.state for rng in rngs],
-        "env_states": env_states,
         "csv_offsets": csv_offsets,
         "config": config_record(config),
+    }
+
+
+def host_meta(rngs, envs, arrays: dict) -> dict:
+    """meta.json's `rng_states` and `env_states` of a learner that steps Gymnasium environments
+    on the host with a NumPy generator per seed: each generator's state and each environment's
+    (`env.get_state()`; its arrays go into `arrays` as `env/<i>/…`)."""
+    return {
+        "rng_states": [rng.bit_generator.state for rng in rngs],
+        "env_states": codec.encode_env_states(envs, arrays),
     }
 
 

@@ -35,6 +35,10 @@ META_FILE = "meta.json"  # written last: a checkpoint folder without it is incom
 STEP_PREFIX = "step_"
 DAMAGED_PREFIX = "damaged_"  # a checkpoint that failed to load is renamed damaged_step_<n>
 POLICY_PATTERN = re.compile(r"^policy_seed_(\d+)\.npz$")
+#: a column per physical parameter of the task in episodes.csv and evaluation tables: p_<name>
+PARAM_PREFIX = "p_"
+#: a column per bottleneck layer in train.csv: rank_<layer> (actor_1, q1_1, …)
+RANK_PREFIX = "rank_"
 
 
 def step_name(step: int) -> str:
@@ -64,3 +68,33 @@ def best_policy_file_name(seed: int) -> str:
 def is_run(path: str | os.PathLike) -> bool:
     """Whether `path` is a run folder (holds config.yaml)."""
     return (Path(path) / CONFIG_FILE).is_file()
+
+
+def param_column(name: str) -> str:
+    """The column of physical parameter `name` (episodes.csv, evaluation tables)."""
+    return PARAM_PREFIX + name
+
+
+def param_columns(columns) -> list[str]:
+    """The parameter columns among `columns`, in their order."""
+    return [c for c in columns if c.startswith(PARAM_PREFIX)]
+
+
+def param_name(column: str) -> str:
+    """The parameter a `param_column` holds."""
+    return column.removeprefix(PARAM_PREFIX)
+
+
+def rank_column(layer: str) -> str:
+    """train.csv's column of bottleneck `layer`'s rank."""
+    return RANK_PREFIX + layer
+
+
+def rank_columns(columns) -> list[str]:
+    """The rank columns among `columns`, in their order."""
+    return [c for c in columns if c.startswith(RANK_PREFIX)]
+
+
+def rank_layer(column: str) -> str:
+    """The layer a `rank_column` holds."""
+    return column.removeprefix(RANK_PREFIX)

@@ -13,7 +13,7 @@ import numpy as np
 
 from adarl.errors import UsageError
 from adarl.files import fs_errors, read_text
-from adarl.runs import tracking
+from adarl.runs import layout, tracking
 
 # episodes.csv: then one column p_<name> per physical parameter of the task
 EPISODE_COLUMNS = ["step", "seed", "episode", "return", "length"]
@@ -27,7 +27,7 @@ MAX_CSV_BYTES = 1 << 30
 
 
 def episode_columns(param_names) -> list[str]:
-    return [*EPISODE_COLUMNS, *(f"p_{p}" for p in param_names)]
+    return [*EPISODE_COLUMNS, *map(layout.param_column, param_names)]
 
 
 def eval_rows(step: int, seed: int, dynamics: str, episodes: list[dict]) -> list[dict]:

@@ -49,17 +49,9 @@ import numpy as np
 from adarl.algos import replay, sac, sac_config, sac_device, schedule
 from adarl.device import MATMUL_PRECISION, matmul_precision, numerics
 from adarl.errors import UsageError
-from adarl.runs import checkpoints, codec, layout, npz
-from adarl.train.guards import check_device_memory, check_training_memory
+from adarl.runs import codec, npz
 from adarl.train.learner import Advance, Episode, Truncation, due
-from adarl.train.sac_learner import (
-    BASE_COLUMNS,
-    LEGACY_TRUNCATION_COLUMNS,
-    TRUNCATION_COLUMNS,
-    finite_parameters,
-    nonfinite_quantities,
-    truncation_rows,
-)
+from adarl.train.sac_family import SACFamily, finite_parameters, truncation_rows
 
 BACKEND = "device"
 ROW_KEYS = ("obs", "act", "rew", "term", "valid")  # a buffer's rows; then its ptr and size
@@ -152,20 +144,6 @@ def eval_fields(config, label: str, dtype) -> dict:
             episodes.append(rows[key])
         per_seed.append({n: np.stack([e[n] for e in episodes]) for n in table.names})
     return {n: np.stack([s[n] for s in per_seed]).astype(dtype) for n in table.names}
-
-
-class EnvView:
-    """What the loop reads of a seed's environment (the episode's parameters, a state for
-    meta.json, `close`); the task itself lives on the device."""
-
-    def __init__(self, params: dict):
-        self.dynamics_params = params
-
-    def get_state(self) -> dict:
-        return {"backend": BACKEND}
-
-    def close(self) -> None:
-        pass
 
 
 class SeedRows:
@@ -300,64 +278,34 @@ def compile_functions(spec: sac.Spec) -> Compiled:
     return fns
 
 
-class DeviceSACLearner:
+class DeviceSACLearner(SACFamily):
     """A SAC-family run on the device backend: all seeds in one vmapped state."""
 
     def __init__(self, config: sac_config.SACConfig, physics=None):
         from adarl.device import missing_reason
-        from adarl.envs import make
 
         config.check_device()
         reason = missing_reason()
         if reason is not None:
             raise UsageError(f"--backend device needs MJX: {reason}")
-        self.config = config
-        self.algo = config.algo
-        self.seeds = list(config.seeds)
-        self.n = len(self.seeds)
-        self.env_options = config.env_options()
         task = device_task(config.task, config.dynamics, config.device_solver)
+        low, high = np.asarray(task.mj_model.actuator_ctrlrange, np.float32).T
+        self.setup(config, task.observation_size, task.action_size, low, high)
         # SeedPhysics or PhysicsRing: fields, episode_params, refill
         self.physics = seed_physics(config, task) if physics is None else physics
-        self.envs = [EnvView(self.physics.episode_params(i, 0)) for i in range(self.n)]
-        low, high = np.asarray(task.mj_model.actuator_ctrlrange, np.float32).T
-        self.spec = sac.make_spec(config, task.observation_size, task.action_size, low, high)
-        self.layer_names = sac.bottleneck_names(config)
-        self.truncation_steps = set(schedule.truncation_steps(config))
-        memory = (
-            self.n,
-            self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
-            self.n * sac.state_bytes(self.spec)
-            + sum(v.nbytes for v in self.physics.fields.values()),
-            f"lower --buffer-size ({config.buffer_size}) or --hidden "
-            f"({','.join(map(str, config.hidden))}), or train fewer seeds per run",
-        )
-        check_training_memory(*memory)
-        check_device_memory(*memory)
-        for label in config.eval_dynamics:  # the host evaluation's tasks; checked now
-            make(
-                config.task, dynamics=label, seed=0, **self.env_options | {"max_episode_steps": 1}
-            ).close()
+        self.check_memory(sum(v.nbytes for v in self.physics.fields.values()), device=True)
+        self.check_eval_dynamics()  # the host evaluation's tasks
         # the device evaluation's tasks and per-episode fields, on the device from here on
         self.eval_fields = {
             label: jax.device_put(eval_fields(config, label, np.dtype(task.dtype)))
             for label in config.eval_dynamics
         }
         self.eval_keys = np.stack([sac_device.eval_key(s) for s in self.seeds])
-        extra = ["parseval_penalty"] if config.parseval_coef > 0 else []
-        extra += ["active_fraction"] if config.sparse_width else []
-        self.train_columns = BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
-        self.extra_logs = {DEVICE_EVAL_CSV: (list(DEVICE_EVAL_COLUMNS),)}
-        if config.adapt_rank:
-            self.extra_logs[layout.TRUNCATIONS_CSV] = (
-                TRUNCATION_COLUMNS,
-                LEGACY_TRUNCATION_COLUMNS,
-            )
+        self.extra_logs = {DEVICE_EVAL_CSV: (list(DEVICE_EVAL_COLUMNS),), **self.extra_logs}
         self.fns = compile_functions(self.spec)
         self.table = jax.device_put({k: v.copy() for k, v in self.physics.fields.items()})
         self.episodes = np.zeros(self.n, np.int64)  # each seed's current episode index
         self.infos: list = []  # update metrics of each chunk since the last train.csv rows
-        self.metric_means: dict | None = None  # of the latest train.csv rows, per seed
 
     # ------------------------------------------------------------------ state
     def fresh(self) -> None:
@@ -370,7 +318,6 @@ class DeviceSACLearner:
         self.episodes = np.zeros(self.n, np.int64)
         self.load_physics()
         self.env = self.fns.init_env(self.env_keys(), self.table)
-        self.rngs = [np.random.default_rng(s) for s in self.seeds]  # meta.json; unused
         self.infos = []
 
     def initial_state(self) -> dict:
@@ -464,7 +411,6 @@ class DeviceSACLearner:
         names = [k.split("/", 1)[1] for k in arrays if k.startswith(f"{PENDING}/")]
         n = arrays[f"{PENDING}/{names[0]}"].shape[0] if names else 0
         self.infos = [{name: arrays[f"{PENDING}/{name}"][j] for name in names} for j in range(n)]
-        self.rngs = checkpoints.restore_rngs(meta, self.seeds)
 
     # ------------------------------------------------------------------ acting and learning
     def advance(self, step: int) -> Advance:
@@ -508,10 +454,6 @@ class DeviceSACLearner:
             )
         return episodes
 
-    def parameters_finite(self) -> bool:
-        finite = jax.device_get(finite_parameters(self.state))
-        return all(np.all(ok) for ok in finite.values())
-
     def truncate(self, step: int) -> Truncation:
         """AdaRL's truncation of every seed at once (`sac.truncate` vmapped: the masks keep
         every seed's width); returns the spectra and truncations.csv rows."""
@@ -549,45 +491,36 @@ class DeviceSACLearner:
 
         return rows
 
-    def train_rows(self, step: int, steps_per_s: float) -> list[dict]:
-        """One train.csv row per seed: the update metrics averaged since the last rows, and the
-        ranks (none before the first update)."""
+    def param_names(self) -> list[str]:
+        return list(self.physics.params)
+
+    def close(self) -> None:
+        pass  # the tasks live on the device
+
+    # ------------------------------------------------------------------ per-seed values (SACFamily)
+    def take_metric_means(self) -> dict | None:
         if not self.infos:
-            return []
+            return None
         infos = jax.device_get(self.infos)
         self.infos = []
-        mean = self.metric_means = {k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]}
-        ranks = jax.device_get(self.fns.ranks(self.state))
-        diagnostics = (
-            jax.device_get(self.fns.diagnostics(self.state)) if self.config.sparse_width else {}
-        )
-        rows = []
-        for i, seed in enumerate(self.seeds):
-            row = {"step": step, "seed": seed, "steps_per_s": steps_per_s}
-            row.update({k: mean[k][i] for k in ("loss_q", "loss_pi", "alpha", "entropy")})
-            row.update({"q_mean": mean["q_mean"][i], "lr": mean["lr"][i]})
-            if self.config.parseval_coef > 0:
-                row["parseval_penalty"] = mean["penalty_actor"][i] + mean["penalty_critic"][i]
-            if self.config.sparse_width:
-                row["active_fraction"] = diagnostics["active_fraction"][i]
-            row.update({f"rank_{n}": int(ranks[n][i]) for n in self.layer_names})
-            rows.append(row)
-        return rows
+        return {k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]}
 
-    def policies(self) -> list[dict]:
-        """Each seed's deterministic policy (its actor's arrays, bottlenecks compacted)."""
+    def seed_ranks(self) -> dict:
+        return jax.device_get(self.fns.ranks(self.state))
+
+    def seed_diagnostics(self) -> dict:
+        return jax.device_get(self.fns.diagnostics(self.state))
+
+    def seed_finite(self) -> dict:
+        return jax.device_get(finite_parameters(self.state))
+
+    def seed_actors(self) -> list[tuple[sac.Spec, dict, dict]]:
         actor = jax.device_get(self.state["actor"])
         masks = jax.device_get(self.state["masks"]["actor"])
-        return [
-            sac.export_policy(self.spec, _take(actor, i), _take(masks, i)) for i in range(self.n)
-        ]
+        return [(self.spec, _take(actor, i), _take(masks, i)) for i in range(self.n)]
 
-    def nonfinite(self, step: int) -> dict[str, list[int]]:
-        """Non-finite update metrics of the latest train.csv rows, parameters, optimiser states
-        or returns, by quantity."""
-        finite = jax.device_get(finite_parameters(self.state))
-        returns = jax.device_get(self.env["ep_return"])
-        return nonfinite_quantities(self.seeds, self.metric_means, finite, returns)
+    def episode_returns(self) -> np.ndarray:
+        return jax.device_get(self.env["ep_return"])
 
 
 def _take(tree, i: int):

@@ -20,8 +20,6 @@ from typing import Protocol
 
 import numpy as np
 
-from adarl.envs.contract import Task
-
 
 class Event(enum.Enum):
     """What is due at the step an `advance` ends at, in the order the loop does it."""
@@ -86,15 +84,18 @@ class Learner(Protocol):
     algo: str
     config: object  # the algorithm's config (`total_steps`, `*_every`, `eval_dynamics`, …)
     seeds: list[int]
-    # one task per seed (adarl.envs.contract.Task); the loop reads each one's `dynamics_params`
-    # (train.csv's dynamics columns), `get_state` (checkpoints) and `close` (at the end)
-    envs: list[Task]
-    rngs: list[np.random.Generator]  # one per seed; checkpoints hold their states
     env_options: dict  # `envs.make` keywords of its environments (evaluation too)
     train_columns: list[str]  # train.csv's columns
     # more CSV logs: file name -> the columns of a new file, then older column sets that a
     # resumed file keeps when its header has exactly those columns (e.g. truncations.csv)
     extra_logs: dict[str, tuple[list[str], ...]]
+
+    def param_names(self) -> list[str]:
+        """The physical parameters an episode records (episodes.csv's `p_<name>` columns): the
+        names of its tasks' `dynamics_params` (adarl.envs.contract.Task)."""
+
+    def close(self) -> None:
+        """Close its environments (at the end of the run)."""
 
     def fresh(self) -> None:
         """The initial state; resets the environments."""
@@ -120,7 +121,9 @@ class Learner(Protocol):
         """Each seed's policy arrays (adarl.policy)."""
 
     def checkpoint_state(self) -> tuple[dict[str, np.ndarray], dict]:
-        """Everything else needed to continue exactly: arrays, and entries of meta.json."""
+        """Everything needed to continue exactly: arrays, and entries of meta.json (a learner
+        that steps Gymnasium environments on the host adds its generators' and environments'
+        states with `adarl.runs.checkpoints.host_meta`; `restore` gets them back in `meta`)."""
 
     def nonfinite(self, step: int) -> dict[str, list[int]]:
         """What is not finite at `step`: quantity (`"actor parameters"`, `"loss_q"`, …) -> the

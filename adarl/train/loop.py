@@ -32,7 +32,7 @@ import numpy as np
 
 from adarl.errors import Stopped, UsageError
 from adarl.files import atomic_write_bytes
-from adarl.runs import checkpoints, codec, folder, layout, logs, provenance
+from adarl.runs import checkpoints, folder, layout, logs, provenance
 from adarl.runs.lock import RunLock
 from adarl.train.guards import DivergenceWatch
 from adarl.train.learner import Episode, Event, Learner, Truncation, due
@@ -208,9 +208,8 @@ class Loop:
         d = self.run_dir
         for name, offset in (offsets or {}).items():
             logs.CsvLog.truncate(d / name, offset)
-        params = self.learner.envs[0].dynamics_params or {}
         columns = {
-            layout.EPISODES_CSV: logs.episode_columns(params),
+            layout.EPISODES_CSV: logs.episode_columns(self.learner.param_names()),
             layout.TRAIN_CSV: self.learner.train_columns,
             layout.EVAL_CSV: logs.EVAL_COLUMNS,
             **self.extra_columns(offsets is not None),
@@ -225,8 +224,7 @@ class Loop:
             log.close()
         if self.tb is not None:
             self.tb.close()
-        for env in self.learner.envs:
-            env.close()
+        self.learner.close()
 
     def episode_done(self, episode: Episode) -> None:
         """Log an episode a learner's `advance` finished."""
@@ -240,7 +238,7 @@ class Loop:
             "return": float(ep_return),
             "length": int(length),
         }
-        row.update({f"p_{k}": v for k, v in info["dynamics"].items()})
+        row.update({layout.param_column(k): v for k, v in info["dynamics"].items()})
         self.logs[layout.EPISODES_CSV].write(row)
         self.tb.write(step, {logs.tb_episode_return(seed): ep_return})
         self.recent_returns.append(float(ep_return))
@@ -309,14 +307,8 @@ class Loop:
         from adarl.policy import to_bytes
 
         arrays, extra = self.learner.checkpoint_state()
-        meta = checkpoints.checkpoint_meta(
-            self.learner.algo,
-            self.config,
-            self.seeds,
-            self.learner.rngs,
-            codec.encode_env_states(self.learner.envs, arrays),
-            {name: log.offset() for name, log in self.logs.items()},
-        )
+        offsets = {name: log.offset() for name, log in self.logs.items()}
+        meta = checkpoints.checkpoint_meta(self.learner.algo, self.config, self.seeds, offsets)
         meta.update(extra)
         meta["best"] = self.best.meta()
         if phase is not None:

@@ -151,7 +151,14 @@ class RNACLearner:
         arrays = codec.flatten_tree(self.state, "state")
         arrays["update_keys"] = np.asarray(self.update_keys)
         arrays.update(self.host.arrays())
-        return arrays, {}
+        return arrays, checkpoints.host_meta(self.rngs, self.envs, arrays)
+
+    def param_names(self) -> list[str]:
+        return list(self.envs[0].dynamics_params or {})
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
 
     def advance(self, step: int) -> Advance:
         """One environment step of every seed, and at the end of a rollout the update of every

@@ -36,26 +36,10 @@ import numpy as np
 
 from adarl.algos import replay, sac, sac_config, schedule
 from adarl.errors import UsageError
-from adarl.runs import checkpoints, codec, layout, npz
-from adarl.train.guards import check_training_memory, nonfinite_seeds
+from adarl.runs import checkpoints, codec, npz
 from adarl.train.learner import Advance, Episode, Truncation, due
+from adarl.train.sac_family import SACFamily, finite_parameters, truncation_rows
 
-LEGACY_TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
-# proposed_rank: the rule's r̂; candidate_rank: max(1, min(old, r̂)); error: the candidate's
-# relative output error on the replay sample; decision: accepted, retained, unchanged or control
-# (adarl-control: logged, not applied)
-TRUNCATION_COLUMNS = [*LEGACY_TRUNCATION_COLUMNS, "candidate_rank", "error", "decision"]
-BASE_COLUMNS = [
-    "step",
-    "seed",
-    "steps_per_s",
-    "loss_q",
-    "loss_pi",
-    "alpha",
-    "entropy",
-    "q_mean",
-    "lr",
-]
 BUFFER_ROW_KEYS = ("obs", "act", "rew", "term", "valid")
 PENDING = "pending"  # arrays.npz prefix of the update metrics not yet averaged into train.csv
 
@@ -125,56 +109,24 @@ class Lane:
     actor: object = None  # host copy of the current policy (NumpyPolicy); None = stale
 
 
-class SACLearner:
+class SACLearner(SACFamily):
     """Environments, lanes of seeds and the host state of a SAC-family run."""
 
     def __init__(self, config: sac_config.SACConfig):
         from adarl.envs import make
 
-        self.config = config
-        self.algo = config.algo
-        self.seeds = list(config.seeds)
-        self.n = len(self.seeds)
-        self.env_options = config.env_options()
+        options = config.env_options()
         # the first seed's environment (an unknown task or dynamics fails here, before anything
         # is written) gives the sizes the memory check needs; the others are made after it
-        self.envs = [
-            make(config.task, dynamics=config.dynamics, seed=self.seeds[0], **self.env_options)
-        ]
-        space = self.envs[0].action_space
-        self.spec = sac.make_spec(
-            config, self.envs[0].observation_space.shape[0], space.shape[0], space.low, space.high
-        )
-        self.layer_names = sac.bottleneck_names(config)
-        self.metric_means: dict | None = None  # of the latest train.csv rows, per seed
-        self.truncation_steps = set(schedule.truncation_steps(config))
-        check_training_memory(
-            self.n,
-            self.n * config.buffer_size * replay.row_bytes(self.spec.obs_dim, self.spec.act_dim),
-            self.n * sac.state_bytes(self.spec),
-            f"lower --buffer-size ({config.buffer_size}) or --hidden "
-            f"({','.join(map(str, config.hidden))}), or train fewer seeds per run",
-        )
+        first = make(config.task, dynamics=config.dynamics, seed=config.seeds[0], **options)
+        space = first.action_space
+        self.setup(config, first.observation_space.shape[0], space.shape[0], space.low, space.high)
+        self.envs = [first]
+        self.check_memory()
         self.envs += [
-            make(config.task, dynamics=config.dynamics, seed=s, **self.env_options)
-            for s in self.seeds[1:]
+            make(config.task, dynamics=config.dynamics, seed=s, **options) for s in self.seeds[1:]
         ]
-        for label in config.eval_dynamics:  # checked now, not at the first evaluation
-            make(
-                config.task, dynamics=label, seed=0, **self.env_options | {"max_episode_steps": 1}
-            ).close()
-        extra = []
-        if config.parseval_coef > 0:
-            extra.append("parseval_penalty")
-        if config.sparse_width:
-            extra.append("active_fraction")
-        self.train_columns = BASE_COLUMNS + extra + [f"rank_{n}" for n in self.layer_names]
-        # AdaRL's truncations.csv (a run from before the retain clause keeps its columns)
-        self.extra_logs = (
-            {layout.TRUNCATIONS_CSV: (TRUNCATION_COLUMNS, LEGACY_TRUNCATION_COLUMNS)}
-            if config.adapt_rank
-            else {}
-        )
+        self.check_eval_dynamics()
 
     # ------------------------------------------------------------------ state
     def fresh(self) -> None:
@@ -265,7 +217,7 @@ class SACLearner:
             "bottleneck_widths": sac.bottleneck_widths(self.spec),
             "lane_bottleneck_widths": [sac.bottleneck_widths(lane.spec) for lane in self.lanes],
         }
-        return arrays, meta
+        return arrays, meta | checkpoints.host_meta(self.rngs, self.envs, arrays)
 
     def restore(self, arrays: dict, meta: dict) -> None:
         if "host/act_keys" in arrays:
@@ -366,10 +318,6 @@ class SACLearner:
             self.end_chunk(lane, update)
         return Advance(end, episodes, due(c, end, truncate=end in self.truncation_steps))
 
-    def parameters_finite(self) -> bool:
-        finite = self.gather(lambda lane: finite_parameters(lane.state))
-        return all(np.all(ok) for ok in finite.values())
-
     def truncate(self, step: int) -> Truncation:
         """AdaRL's truncation, at the steps `schedule.truncation_steps` gives: every bottleneck
         decomposed and cut (Eq. 5 and the retain clause, `sac.truncate`) and each lane narrowed
@@ -406,131 +354,43 @@ class SACLearner:
                 lane.state = sac.resize_bottlenecks(lane.spec, lane.state)
 
     # ------------------------------------------------------------------ what the loop reads
-    def train_rows(self, step: int, steps_per_s: float) -> list[dict]:
-        """One train.csv row per seed: the update metrics averaged since the last rows, the
-        ranks and diagnostics (none before the first update)."""
+    def param_names(self) -> list[str]:
+        return list(self.envs[0].dynamics_params or {})
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+    # ------------------------------------------------------------------ per-seed values (SACFamily)
+    def take_metric_means(self) -> dict | None:
         if not self.lanes[0].infos:
-            return []
+            return None
         per_lane = []
         for lane in self.lanes:
             infos = jax.device_get(lane.infos)
             lane.infos = []
             per_lane.append({k: np.mean([i[k] for i in infos], axis=0) for k in infos[0]})
-        mean = self.metric_means = _concat_lanes(per_lane)
-        ranks = self.gather(_ranks)
-        diag = self.gather(lambda lane: lane.fns.diagnostics(lane.state))
-        rows = []
-        for i, seed in enumerate(self.seeds):
-            row = {
-                "step": step,
-                "seed": seed,
-                "steps_per_s": steps_per_s,
-                "loss_q": mean["loss_q"][i],
-                "loss_pi": mean["loss_pi"][i],
-                "alpha": mean["alpha"][i],
-                "entropy": mean["entropy"][i],
-                "q_mean": mean["q_mean"][i],
-                "lr": mean["lr"][i],
-            }
-            if self.config.parseval_coef > 0:
-                row["parseval_penalty"] = mean["penalty_actor"][i] + mean["penalty_critic"][i]
-            if self.config.sparse_width:
-                row["active_fraction"] = diag["active_fraction"][i]
-            row.update({f"rank_{n}": int(ranks[n][i]) for n in self.layer_names})
-            rows.append(row)
-        return rows
+        return _concat_lanes(per_lane)
 
-    def policies(self) -> list[dict]:
-        """Each seed's deterministic policy (its actor's arrays, bottlenecks compacted)."""
-        policies = []
+    def seed_ranks(self) -> dict:
+        return self.gather(_ranks)
+
+    def seed_diagnostics(self) -> dict:
+        return self.gather(lambda lane: lane.fns.diagnostics(lane.state))
+
+    def seed_finite(self) -> dict:
+        return self.gather(lambda lane: finite_parameters(lane.state))
+
+    def seed_actors(self) -> list[tuple[sac.Spec, dict, dict]]:
+        actors = []
         for lane in self.lanes:
             actor = jax.device_get(lane.state["actor"])
             masks = jax.device_get(lane.state["masks"]["actor"])
-            policies.append(sac.export_policy(lane.spec, _take(actor, 0), _take(masks, 0)))
-        return policies
+            actors.append((lane.spec, _take(actor, 0), _take(masks, 0)))
+        return actors
 
-    def nonfinite(self, step: int) -> dict[str, list[int]]:
-        """Non-finite update metrics of the latest train.csv rows, parameters, optimiser states
-        or returns, by quantity."""
-        finite = self.gather(lambda lane: finite_parameters(lane.state))
-        return nonfinite_quantities(self.seeds, self.metric_means, finite, self.ep_return)
-
-
-def nonfinite_quantities(seeds, metric_means, finite: dict, returns) -> dict[str, list[int]]:
-    """`Learner.nonfinite` of the SAC family: the seeds whose update metrics (`metric_means`,
-    None before the first update), parameters and optimiser states (`finite`: name -> per-seed
-    flags) or episode `returns` are not finite, by quantity; shared by both backends."""
-    found = {}
-    if metric_means is not None:
-        for key in ("loss_q", "loss_pi", "q_mean", "alpha", "entropy"):
-            found[key] = nonfinite_seeds(seeds, metric_means[key])
-    for name, ok in finite.items():
-        found[name] = [s for s, o in zip(seeds, ok) if not o]
-    found["episode return"] = nonfinite_seeds(seeds, returns)
-    return {quantity: bad for quantity, bad in found.items() if bad}
-
-
-def truncation_rows(
-    step: int, seeds, old: dict, report: dict, apply_cuts: bool
-) -> tuple[dict[str, np.ndarray], list[dict]]:
-    """A truncation's spectra (one row per seed) and its truncations.csv rows, one per layer and
-    seed, from `sac.truncate`'s report (singular values, proposed, new and candidate rank, error
-    per layer, seeds stacked) and the ranks before it (`old`)."""
-    spectra = {name: np.asarray(item[0]) for name, item in report.items()}
-    rows = []
-    for name, (_, proposed, new, candidate, error) in report.items():
-        for i, seed in enumerate(seeds):
-            rows.append(
-                {
-                    "step": step,
-                    "seed": seed,
-                    "layer": name,
-                    "old_rank": int(old[name][i]),
-                    "proposed_rank": int(proposed[i]),
-                    "new_rank": int(new[i]),
-                    "candidate_rank": int(candidate[i]),
-                    "error": float(error[i]),
-                    "decision": truncation_decision(
-                        int(old[name][i]), int(candidate[i]), int(new[i]), apply_cuts
-                    ),
-                }
-            )
-    return spectra, rows
-
-
-def truncation_decision(
-    old_rank: int, candidate_rank: int, new_rank: int, apply_cuts: bool = True
-) -> str:
-    """`accepted`: the rule's cut was made; `retained`: the retain clause kept the old rank;
-    `control`: the schedule-matched control kept it (the cut was proposed, never applied);
-    `unchanged`: the rule proposed no cut."""
-    if candidate_rank >= old_rank:
-        return "unchanged"
-    if not apply_cuts:
-        return "control"
-    return "accepted" if new_rank == candidate_rank else "retained"
-
-
-@jax.jit
-def finite_parameters(state: dict) -> dict:
-    """Per seed of a lane: are all actor, critic and temperature parameters, and their
-    optimisers' states (Adam's moments), finite? Keyed by the divergence watch's words."""
-
-    def finite(tree):
-        leaves = jax.tree_util.tree_leaves(tree)
-        return jnp.stack([jnp.isfinite(x).reshape(x.shape[0], -1).all(axis=1) for x in leaves]).all(
-            axis=0
-        )
-
-    return {
-        "actor parameters": finite(state["actor"]),
-        "critic parameters": finite(state["critic"]),
-        "critic target parameters": finite(state["critic_target"]),
-        "temperature parameters": finite(state["log_alpha"]),
-        "actor optimiser state": finite(state["opt_actor"]),
-        "critic optimiser state": finite(state["opt_critic"]),
-        "temperature optimiser state": finite(state["opt_alpha"]),
-    }
+    def episode_returns(self) -> np.ndarray:
+        return self.ep_return
 
 
 def _ranks(lane: Lane) -> dict:

@@ -15,7 +15,7 @@ from adarl.errors import UsageError
 from adarl.runs import checkpoints
 from adarl.runs.layout import PRE_TRUNCATION, PRE_TRUNCATION_DIR
 from adarl.runs.logs import read_csv
-from adarl.train import fork, launch, sac_learner, trainers
+from adarl.train import fork, launch, sac_family, trainers
 
 CSVS = ("episodes.csv", "train.csv", "eval.csv", "truncations.csv")
 
@@ -297,6 +297,6 @@ def test_apply_cuts_false_is_only_the_control():
         tiny(apply_cuts=False).validate()
     with pytest.raises(UsageError, match="apply-cuts must be false"):
         tiny("adarl-control", apply_cuts=True).validate()
-    assert sac_learner.truncation_decision(64, 40, 64, apply_cuts=False) == "control"
-    assert sac_learner.truncation_decision(64, 64, 64, apply_cuts=False) == "unchanged"
-    assert sac_learner.truncation_decision(64, 40, 40) == "accepted"
+    assert sac_family.truncation_decision(64, 40, 64, apply_cuts=False) == "control"
+    assert sac_family.truncation_decision(64, 64, 64, apply_cuts=False) == "unchanged"
+    assert sac_family.truncation_decision(64, 40, 40) == "accepted"

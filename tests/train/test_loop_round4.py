@@ -12,7 +12,7 @@ from synthetic_runs import policy_arrays
 from adarl.envs import rollout
 from adarl.runs import layout
 from adarl.train import loop as loop_module
-from adarl.train.sac_learner import LEGACY_TRUNCATION_COLUMNS, TRUNCATION_COLUMNS
+from adarl.train.sac_family import LEGACY_TRUNCATION_COLUMNS, TRUNCATION_COLUMNS
 
 
 class Recorder:

@@ -112,7 +112,15 @@ class TinyLearner:
             env.set_state(codec.decode_env_state(enc, arrays))
 
     def checkpoint_state(self) -> tuple[dict, dict]:
-        return self.host.arrays(), {}
+        arrays = self.host.arrays()
+        return arrays, checkpoints.host_meta(self.rngs, self.envs, arrays)
+
+    def param_names(self) -> list[str]:
+        return list(self.envs[0].dynamics_params or {})
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
 
     def advance(self, step: int) -> Advance:
         config, host = self.config, self.host

@@ -12,7 +12,7 @@ import pytest
 from adarl.algos import sac_config
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.runs.logs import read_csv
-from adarl.train import sac_learner, trainers
+from adarl.train import sac_family, trainers
 
 
 def smoke_config(**overrides):
@@ -59,7 +59,7 @@ def expected_decision(old: int, candidate: int, new: int) -> str:
     ],
 )
 def test_truncation_decision(truncated, expected):
-    assert sac_learner.truncation_decision(*truncated) == expected
+    assert sac_family.truncation_decision(*truncated) == expected
     assert expected_decision(*truncated) == expected
 
 
