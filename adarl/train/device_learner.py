@@ -492,7 +492,7 @@ class DeviceSACLearner(SACFamily):
         return rows
 
     def param_names(self) -> list[str]:
-        return list(self.physics.params)
+        return list(self.physics.episode_params(0, 0))
 
     def close(self) -> None:
         pass  # the tasks live on the device
