@@ -194,6 +194,7 @@ def test_the_same_seeds_give_the_same_numbers(full_run, killed_run):
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
     meta = json.loads((first / "meta.json").read_text())
     assert meta["backend"] == "device" and meta["step"] == 600
+    assert "env_states" not in meta and "rng_states" not in meta  # the tasks live on the device
 
 
 def test_it_learns(full_run):

@@ -33,7 +33,7 @@ def test_the_device_memory_check_counts_n_seeds_buffers(tmp_path, capsys, monkey
         # let through: stop here, before 20M-row buffers are allocated
         raise AssertionError(f"{n_seeds} seeds' {buffers + networks} bytes passed the check")
 
-    monkeypatch.setattr("adarl.train.device_learner.check_device_memory", spy)
+    monkeypatch.setattr("adarl.train.sac_family.check_device_memory", spy)
     monkeypatch.setattr(guards, "machine_memory", lambda: 2**60)  # the host has room
     monkeypatch.setattr(guards, "accelerator_memory", lambda: 1)  # nothing fits: the figure only
     assert main(_train(tmp_path, "0")) == 2

@@ -183,6 +183,7 @@ def test_checkpoints_record_the_precision_and_refuse_another(reference):
     learner = reference["learner"]
     arrays, meta = learner.checkpoint_state()
     assert meta == {"backend": "device", "matmul_precision": "highest"}
+    assert not hasattr(learner, "envs") and not hasattr(learner, "rngs")  # no host stand-ins
     with pytest.raises(UsageError, match="written with matmul precision 'tensorfloat32'"):
         learner.restore(arrays, {"backend": "device", "matmul_precision": "tensorfloat32"})
 
