@@ -379,3 +379,25 @@ def test_the_sweep_files_expand_to_126_units_once_every_task_is_known():
     assert len(units) == 126 and all(len(u.seeds) == 1 for u in units)
     assert len({u.id for u in units}) == 126
     assert {u.total_steps for u in units} == {100_000}
+
+
+def test_the_committed_report_and_results_are_the_rows_own(script, tmp_path):
+    """The committed report.md is what the script computes from the committed raw rows, and the
+    doc's Results quote its primaries (the decision) as it prints them."""
+    out = tmp_path / "out"
+    assert script.main([str(FILES / "rows"), "--out", str(out)]) == 0
+    report = (out / "report.md").read_text()
+    assert report == (FILES / "report.md").read_text()
+    assert "126 finished seeds in the design, 0 runs still training" in report
+    results = (EXPERIMENTS / "claim2-across-tasks.md").read_text().split("## Results", 1)[1]
+    for rule, line, slope, width in (
+        ("cumulative", "a = 20.06, F = 28.8", "b = +0.171", "w = +0.623 (elasticity +0.90)"),
+        ("energy", "a = 22.87, F = 36.7", "b = +0.165", "w = +0.497 (elasticity +0.72)"),
+    ):
+        for estimate in (line, slope, width):
+            assert f"| {rule} |" in report and estimate in report, estimate
+        assert f"- {rule}: does not follow 2·d_a + 1: the line (0, 1) is rejected" in report
+    for quoted in ("a = 20.06 [13.58, 26.53], F = 28.8", "b = +0.171 [−0.245, +0.586]",
+                   "w = +0.623 [+0.576, +0.670]", "a = 22.87 [16.07, 29.67], F = 36.7",
+                   "b = +0.165 [−0.272, +0.601]", "w = +0.497 [+0.436, +0.558]"):  # fmt: skip
+        assert quoted in results, quoted
