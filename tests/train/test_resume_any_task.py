@@ -1,7 +1,8 @@
 """Exact resume on tasks beyond the paper's four (issue 53): a generic Gymnasium MuJoCo task under
 uniform generic and addressed parameters, and a user's own robot (its XML written by the test)
 through the CLI (`--env-module`, `--env-kwargs`, SIGKILL) and through `adarl.train(env_fn=...)`,
-each killed between two checkpoints and resumed, write what the uninterrupted run writes. A
+each killed with SIGKILL between two checkpoints and resumed, write what the uninterrupted run
+writes. A
 plain env whose state cannot be captured trains and checkpoints, and its resume is refused in
 one line. `pytest -m alltasks` runs every Gymnasium MuJoCo v5 task the same way (minutes)."""
 
@@ -15,12 +16,11 @@ from pathlib import Path
 
 import pytest
 import user_env
-from test_resume_every_algorithm import Crash, assert_same_run
+from test_resume_every_algorithm import assert_same_run
 
 import adarl
 from adarl.algos import registry
 from adarl.runs import checkpoints, folder
-from adarl.runs.layout import CHECKPOINT_DIR
 from adarl.runs.logs import read_csv
 from adarl.train.trainers import trainer
 
@@ -38,22 +38,40 @@ TINY = {
 TESTS = str(Path(__file__).parents[1])
 
 
-def _train_killed_then_resumed(config, run_dir, monkeypatch):
-    """Train `config` into `run_dir`, dying before its second checkpoint, then resume it."""
-    saved, original = [], checkpoints.save_checkpoint
+# Trains a config in a process of its own that SIGKILLs itself as its second regular checkpoint
+# starts (the first is complete): a kill at a fixed point of the run, nothing flushed or closed.
+KILLED_AT_SECOND_CHECKPOINT = """
+import json, os, signal, sys
+from adarl.algos import registry
+from adarl.runs import checkpoints
+from adarl.runs.layout import CHECKPOINT_DIR
+from adarl.train.trainers import trainer
 
-    def save_then_crash(*args, **kwargs):
-        if kwargs.get("folder", CHECKPOINT_DIR) != CHECKPOINT_DIR:
-            return original(*args, **kwargs)
+algo, fields, run_dir = json.loads(sys.argv[1])
+original, saved = checkpoints.save_checkpoint, []
+
+def save_or_die(*args, **kwargs):
+    if kwargs.get("folder", CHECKPOINT_DIR) == CHECKPOINT_DIR:
         if saved:
-            raise Crash
-        saved.append(original(*args, **kwargs))
-        return saved[-1]
+            os.kill(os.getpid(), signal.SIGKILL)
+        saved.append(True)
+    return original(*args, **kwargs)
 
-    monkeypatch.setattr(checkpoints, "save_checkpoint", save_then_crash)
-    with pytest.raises(Crash):
-        trainer(config.algo)(config, run_dir, progress=False)
-    monkeypatch.setattr(checkpoints, "save_checkpoint", original)
+checkpoints.save_checkpoint = save_or_die
+trainer(algo)(registry.resolve_config(algo, "smoke", fields), run_dir, progress=False)
+"""
+
+
+def _train_killed_then_resumed(config, run_dir, fields):
+    """Train `config` (`fields` on the smoke preset) into `run_dir` in a subprocess killed with
+    SIGKILL before its second checkpoint, then resume it here."""
+    import json
+
+    argv = json.dumps([config.algo, fields, str(run_dir)])
+    cmd = [sys.executable, "-c", KILLED_AT_SECOND_CHECKPOINT, argv]
+    killed = subprocess.run(cmd, capture_output=True, text=True, env=_cli()[1])
+    assert killed.returncode == -signal.SIGKILL, killed.stderr[-2000:]
+    assert len(checkpoints.checkpoint_dirs(run_dir)) == 1 and not (run_dir / "DONE").exists()
     _, back = folder.config_from_run(run_dir)
     assert back == config
     trainer(config.algo)(back, run_dir, resume=True, progress=False)
@@ -63,10 +81,11 @@ def _train_killed_then_resumed(config, run_dir, monkeypatch):
     "task, dynamics",
     [("HalfCheetah-v5", "uniform:mass_scale=0.7..1.3,body:torso.mass=4..9")],
 )
-def test_a_generic_task_resumes_exactly(task, dynamics, tmp_path, monkeypatch):
-    config = registry.resolve_config("adarl", "smoke", {**TINY, "task": task, "dynamics": dynamics})
+def test_a_generic_task_resumes_exactly_after_sigkill(task, dynamics, tmp_path):
+    fields = {**TINY, "task": task, "dynamics": dynamics}
+    config = registry.resolve_config("adarl", "smoke", fields)
     trainer("adarl")(config, tmp_path / "full", progress=False)
-    _train_killed_then_resumed(config, tmp_path / "killed", monkeypatch)
+    _train_killed_then_resumed(config, tmp_path / "killed", fields)
     assert_same_run(tmp_path / "full", tmp_path / "killed", "adarl")
     masses = {float(r["p_body:torso.mass"]) for r in read_csv(tmp_path / "full" / "episodes.csv")}
     assert len(masses) > 1 and all(4 <= m <= 9 for m in masses)  # varied by episode, logged
@@ -159,14 +178,14 @@ MUJOCO_V5 = (
 @pytest.mark.alltasks
 @pytest.mark.parametrize("algo", ["adarl", "sac"])
 @pytest.mark.parametrize("task", MUJOCO_V5)
-def test_every_gymnasium_mujoco_task_trains_and_resumes_exactly(task, algo, tmp_path, monkeypatch):
+def test_every_gymnasium_mujoco_task_trains_and_resumes_exactly(task, algo, tmp_path):
     element = folder_element(task)
     fields = {**TINY, "task": task, "dynamics": f"uniform:mass_scale=0.8..1.2,{element}"}
     if algo == "sac":
         fields.pop("truncate_every"), fields.pop("warmup_steps")
     config = registry.resolve_config(algo, "smoke", fields)
     trainer(algo)(config, tmp_path / "full", progress=False)
-    _train_killed_then_resumed(config, tmp_path / "killed", monkeypatch)
+    _train_killed_then_resumed(config, tmp_path / "killed", fields)
     assert_same_run(tmp_path / "full", tmp_path / "killed", algo)
 
 
