@@ -16,11 +16,12 @@ from pathlib import Path
 
 import pytest
 import user_env
-from test_resume_every_algorithm import assert_same_run
+from test_resume_every_algorithm import Crash, assert_same_run
 
 import adarl
 from adarl.algos import registry
 from adarl.runs import checkpoints, folder
+from adarl.runs.layout import CHECKPOINT_DIR
 from adarl.runs.logs import read_csv
 from adarl.train.trainers import trainer
 
@@ -72,6 +73,29 @@ def _train_killed_then_resumed(config, run_dir, fields):
     killed = subprocess.run(cmd, capture_output=True, text=True, env=_cli()[1])
     assert killed.returncode == -signal.SIGKILL, killed.stderr[-2000:]
     assert len(checkpoints.checkpoint_dirs(run_dir)) == 1 and not (run_dir / "DONE").exists()
+    _, back = folder.config_from_run(run_dir)
+    assert back == config
+    trainer(config.algo)(back, run_dir, resume=True, progress=False)
+
+
+def _train_crashed_then_resumed(config, run_dir, monkeypatch):
+    """Train `config` into `run_dir` in this process, dying (an exception) as its second
+    checkpoint starts, then resume it: for an `env_fn` task, which only this process has
+    registered (the CLI's own robot is killed with SIGKILL above)."""
+    saved, original = [], checkpoints.save_checkpoint
+
+    def save_then_crash(*args, **kwargs):
+        if kwargs.get("folder", CHECKPOINT_DIR) != CHECKPOINT_DIR:
+            return original(*args, **kwargs)
+        if saved:
+            raise Crash
+        saved.append(original(*args, **kwargs))
+        return saved[-1]
+
+    monkeypatch.setattr(checkpoints, "save_checkpoint", save_then_crash)
+    with pytest.raises(Crash):
+        trainer(config.algo)(config, run_dir, progress=False)
+    monkeypatch.setattr(checkpoints, "save_checkpoint", original)
     _, back = folder.config_from_run(run_dir)
     assert back == config
     trainer(config.algo)(back, run_dir, resume=True, progress=False)
@@ -141,7 +165,7 @@ def test_a_users_own_env_fn_trains_and_resumes_exactly_from_python(tmp_path, mon
     assert set(run.final_ranks) == {"actor_1", "q1_1", "q2_1"}
     policy = adarl.load_policy(run.path, seed=0)
     assert policy(run_obs := user_env.np.zeros(4)).shape == (2,) and run_obs.shape == (4,)
-    _train_killed_then_resumed(run.config, tmp_path / "killed", monkeypatch)
+    _train_crashed_then_resumed(run.config, tmp_path / "killed", monkeypatch)
     assert_same_run(tmp_path / "full", tmp_path / "killed", "adarl")
     with pytest.raises(adarl.UsageError, match="drop total_steps"):
         adarl.train(env_fn=make_robot, resume=tmp_path / "killed", total_steps=5)
