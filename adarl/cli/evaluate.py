@@ -115,13 +115,13 @@ def run(args: argparse.Namespace) -> int:
         check_not_smaller,
         default_output,
         plan,
-        sidecar_path,
         summarise,
         write_evaluation,
     )
     from adarl.evaluation.evaluate import tables as evaluate_tables
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
+    from adarl.runs.layout import evaluation_sidecar
 
     if args.suite is not None:
         return run_suite_command(args)
@@ -150,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     for index, run_ in enumerate(runs):
         path = Path(args.out) if args.out else default_output(run_, spec)
         check_writable_file(path)
-        check_writable_file(sidecar_path(path), "--out's JSON sidecar")
+        check_writable_file(evaluation_sidecar(path), "--out's JSON sidecar")
         check_not_smaller(path, sum(u.episodes for u in units if u.run_index == index))
     command = command_line(args)
     tables = evaluate_tables(runs, units, workers=args.workers)
@@ -169,11 +169,11 @@ def run_suite_command(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from adarl.evaluation import suites
-    from adarl.evaluation.evaluate import check_not_smaller, sidecar_path
+    from adarl.evaluation.evaluate import check_not_smaller
     from adarl.evaluation.evaluate import tables as evaluate_tables
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
-    from adarl.runs.layout import EVALUATIONS_DIR
+    from adarl.runs.layout import EVALUATIONS_DIR, evaluation_sidecar
 
     mixed = [
         flag
@@ -207,7 +207,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     for index, run_ in enumerate(runs):
         episodes_path = run_.path / EVALUATIONS_DIR / f"{stem}.csv"
         check_writable_file(episodes_path)
-        check_writable_file(sidecar_path(episodes_path), "the suite's JSON sidecar")
+        check_writable_file(evaluation_sidecar(episodes_path), "the suite's JSON sidecar")
         check_writable_file(suites.summary_path(run_, args.suite, args.checkpoint))
         check_not_smaller(episodes_path, sum(u.episodes for u in units if u.run_index == index))
     tables = evaluate_tables(  # the units planned above: `suites.run_suite` would plan again

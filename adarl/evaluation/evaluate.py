@@ -264,11 +264,6 @@ def check_not_smaller(path: Path, episodes: int) -> None:
         )
 
 
-def sidecar_path(path: Path) -> Path:
-    """The JSON sidecar beside an evaluation CSV (same stem): what `write_evaluation` writes last."""
-    return Path(path).with_suffix(".json")
-
-
 def write_evaluation(
     table: pd.DataFrame,
     path: Path,
@@ -297,7 +292,7 @@ def write_evaluation(
         "seeds": sorted(int(s) for s in table["seed"].unique()),
         "command": command,
     } | dict(extra or {})
-    atomic_write_json(sidecar_path(path), meta)
+    atomic_write_json(layout.evaluation_sidecar(path), meta)  # last
     return path
 
 

@@ -135,7 +135,7 @@ def evaluations(run: Run) -> list[Evaluation]:
     folder = run.path / EVALUATIONS_DIR
     found = []
     for csv_path in sorted(folder.glob("*.csv")) if folder.is_dir() else []:
-        sidecar = csv_path.with_suffix(".json")
+        sidecar = layout.evaluation_sidecar(csv_path)
         if not sidecar.is_file():
             continue
         try:

@@ -98,3 +98,9 @@ def rank_columns(columns) -> list[str]:
 def rank_layer(column: str) -> str:
     """The layer a `rank_column` holds."""
     return column.removeprefix(RANK_PREFIX)
+
+
+def evaluation_sidecar(path: str | os.PathLike) -> Path:
+    """The JSON sidecar beside an evaluation CSV (same stem), written after it: an evaluation
+    whose sidecar is missing is incomplete."""
+    return Path(path).with_suffix(".json")
