@@ -45,8 +45,13 @@ def run_episodes(
             distance = _root_x(env) - start_x
             params = {name: float(v) for name, v in info["dynamics"].items()}
             rows.append(
-                {"episode": k, "return": total, "length": length, "distance": distance}
-                | {"params": params}
+                {
+                    "episode": k,
+                    "return": total,
+                    "length": length,
+                    "distance": distance,
+                    "params": params,
+                }
             )
     finally:
         env.close()

@@ -6,7 +6,7 @@ The base holds what a SAC-family run is whatever its backend: the spec and bottl
 the truncation steps, train.csv's and truncations.csv's columns, the memory check and the check
 of the evaluation dynamics made before anything is written, and what the loop reads back (the
 train.csv rows, the policies, the divergence watch's quantities, the truncations.csv rows). A
-learner gives the base its per-seed values through five methods (`take_metric_means`,
+learner gives the base its per-seed values through six methods (`take_metric_means`,
 `seed_ranks`, `seed_diagnostics`, `seed_finite`, `seed_actors`, `episode_returns`); how it
 stores its seeds is its own.
 """
