@@ -10,6 +10,14 @@
 #
 # OUT.csv: accelerator_learner.py's columns with `code` (before/after) and `round` in front.
 set -euo pipefail
+if [ "${1:-}" = -h ] || [ "${1:-}" = --help ]; then
+  sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'
+  exit 0
+fi
+if [ $# -ne 2 ] || [ ! -d "$1" ]; then
+  echo "usage: device_before_after.sh BEFORE_CHECKOUT OUT.csv (got: ${*:-nothing}; BEFORE_CHECKOUT must be a folder)" >&2
+  exit 2
+fi
 before=$(cd "$1" && pwd)
 out=$2
 after=$(cd "$(dirname "$0")/.." && pwd)

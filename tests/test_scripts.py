@@ -314,3 +314,15 @@ def test_the_accelerator_scripts_have_help_and_refuse_arguments_in_one_line(scri
     done = subprocess.run(["bash", script, "--bogus"], cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.count("\n") == 1 and "unknown argument '--bogus'" in done.stderr
+
+
+def test_the_device_before_after_script_has_help_and_refuses_bad_arguments(tmp_path):
+    """bench/device_before_after.sh (docs/benchmarks.md): --help, and a missing or bad checkout
+    is one line, exit 2, nothing written (the measurement itself needs an idle machine)."""
+    script = str(ROOT / "bench" / "device_before_after.sh")
+    shown = subprocess.run(["bash", script, "--help"], capture_output=True, text=True)
+    assert shown.returncode == 0 and "before, after, before, after" in shown.stdout
+    for argv in ([], [str(tmp_path / "nope"), str(tmp_path / "out.csv")]):
+        bad = subprocess.run(["bash", script, *argv], capture_output=True, text=True)
+        assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+    assert not (tmp_path / "out.csv").exists()
