@@ -3,21 +3,18 @@
 # resumes every unit from its newest checkpoint and skips finished ones, so running this again
 # (at the start of every session) continues where the last session stopped:
 #   git worktree add --detach /work/camp COMMIT     # the campaign's frozen code (campaign.md)
-#   git worktree add --detach /work/camp2 COMMIT2   # claim 2 across tasks' frozen code
+#   git worktree add --detach /work/camp3 COMMIT3   # claim 1 across tasks' frozen code
 #   ../shared/tools/background /work/main/results/campaign.log bash /work/main/docs/experiments/campaign.sh > /work/main/results/campaign.pid
 # and, before a session ends, stop it without losing a step (each unit writes a checkpoint
 # where it stops, and the sweep exits 130, which ends this script too):
 #   kill -TERM -- -$(cat /work/main/results/campaign.pid)
-# (CAMPAIGN_CODE, CAMPAIGN_CODE2, CAMPAIGN_PYTHON and CAMPAIGN_RESULTS replace the paths below in
+# (CAMPAIGN_CODE, CAMPAIGN_CODE3, CAMPAIGN_PYTHON and CAMPAIGN_RESULTS replace the paths below in
 # its test.)
 # Bash reads a script as it runs it: replace this file (write a copy, then mv), never edit it in
 # place while the campaign runs.
 set -u
 E=$(cd "$(dirname "$0")" && pwd)
 CODE=${CAMPAIGN_CODE:-/work/camp}  # python -m puts the working folder first: the frozen code runs
-# claim 2 across tasks needs the tasks beyond the paper's four: its own frozen code (9e8135c,
-# campaign.md), Walker2d's units keep theirs
-CODE2=${CAMPAIGN_CODE2:-/work/camp2}
 PY=${CAMPAIGN_PYTHON:-/work/main/.venv/bin/python}
 R=${CAMPAIGN_RESULTS:-/work/main/results}
 mkdir -p "$R"
@@ -28,22 +25,37 @@ mkdir -p "$R"
 # from 2026-12-05 20:38 RNAC before the rest of Humanoid's Parseval units, so that every method
 # of Table 1 has a row first (campaign.md, "RNAC before Parseval's rest").
 # An entry FILE|FOLDER runs FILE into results/FOLDER, a sweep folder it shares with FOLDER's file.
-# Table 1 finished on 2026-12-05 (every row committed). From 2026-12-07 (session 26: results/ went
-# with the machine again): claim 2 across tasks first (126 units of minutes, each finished inside a
-# session), then Walker2d's seeds 2-4, SAC seeds 0-1 and seeds 0-1 of the whole preset (AdaRL 0-1
-# again, for their controls' fork point), whose 3M-step units outlast a session (campaign.md,
-# "Session 26: short units first").
-C=$E/claim2-across-tasks
+# Table 1 finished on 2026-12-05, claim 2 across tasks on 2026-12-07 (every row committed). From
+# 2026-12-07 (session 29): claim 1 across tasks first (campaign.md, "Session 29"): its primary pair
+# in 15 blocks of one seed (20 units of minutes each), every block followed by its robustness grids
+# and its export to the committed rows, so that a finished block survives a new machine; then
+# Walker2d's 3M-step units, which outlast a session, and fixed-rank-power.
+CODE3=${CAMPAIGN_CODE3:-/work/camp3}  # claim 1 across tasks' frozen code (its pre-registration)
+C1=$E/claim1-across-tasks
+R1=$R/claim1-across-tasks
+cd "$CODE3" || exit 2
+$PY "$E/claim1_across_tasks.py" restore "$R1" || exit 2  # the committed blocks (a new machine)
+for seed in $(seq 0 14); do
+  echo "== $(date -u +%FT%TZ) claim 1 across tasks, block $seed"
+  $PY -m adarl.cli.main sweep "$C1/primary-seed-$seed.yaml" --out "$R1" --workers 2 --no-progress
+  code=$?
+  echo "== $(date -u +%FT%TZ) block $seed exited $code"
+  if [ "$code" -eq 130 ] || [ "$code" -eq 2 ]; then exit "$code"; fi
+  $PY "$E/claim1_across_tasks.py" evaluate "$R1" --code "$CODE3"
+  code=$?
+  echo "== $(date -u +%FT%TZ) grids exited $code"
+  if [ "$code" -eq 130 ] || [ "$code" -eq 143 ]; then exit "$code"; fi
+  $PY "$E/claim1_across_tasks.py" export "$R1"
+done
 W=$E/paper-schedule-walker2d
-for entry in "$C/claim2-across-tasks.yaml" "$C/width-beta.yaml|claim2-across-tasks" \
-  "$W/paper-schedule-walker2d-seeds-2-4.yaml|paper-schedule-walker2d" \
+for entry in "$W/paper-schedule-walker2d-seeds-2-4.yaml|paper-schedule-walker2d" \
   "$W/paper-schedule-walker2d-sac-0-1.yaml|paper-schedule-walker2d" \
   "$W/paper-schedule-walker2d.yaml" fixed-rank-power; do
   sweep=${entry%%|*}
   name=$(basename "$sweep" .yaml)
   [[ $entry == *"|"* ]] && name=${entry#*|}
   echo "== $(date -u +%FT%TZ) $sweep"
-  if [ "$name" = claim2-across-tasks ]; then cd "$CODE2" || exit 2; else cd "$CODE" || exit 2; fi
+  cd "$CODE" || exit 2
   $PY -m adarl.cli.main sweep "$sweep" --out "$R/$name" --workers 2 --no-progress
   code=$?
   echo "== $(date -u +%FT%TZ) $(basename "$sweep" .yaml) exited $code"
