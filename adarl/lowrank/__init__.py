@@ -181,6 +181,13 @@ def select_rank(sigma: jnp.ndarray, beta: float, rule: str = "cumulative") -> jn
             "a stack of spectra)"
         )
     check_beta(beta)
+    if _concrete(sigma) and not bool(
+        jnp.all(jnp.isfinite(sigma)) & jnp.all(jnp.asarray(sigma) >= 0)
+    ):
+        raise ValueError(
+            f"sigma must be a spectrum of finite, non-negative singular values, got {sigma!r} "
+            "(a diverged layer's SVD?)"
+        )
     if rule == "cumulative":
         return select_rank_cumulative(sigma, beta)
     if rule == "ratio":
@@ -508,6 +515,16 @@ def fit_opt_state(
             return jax.tree_util.tree_structure(node) == structure
         except Exception:  # noqa: BLE001 - nodes that are not pytrees are leaves
             return False
+
+    nodes = jax.tree_util.tree_leaves(opt_state, is_leaf=like_params)
+    moments = [n for n in nodes if not like_params(n) and jnp.ndim(n) >= 1]
+    if moments and not any(like_params(n) for n in nodes):
+        # per-parameter arrays, none of them laid out as these params: another model's state
+        raise ValueError(
+            "opt_state does not match params: none of its per-parameter parts has the structure "
+            "of the params being cut (another model's optimiser state?); allowed: the state of "
+            "the optimiser that trains these params"
+        )
 
     def fit(node):
         if like_params(node):

@@ -337,3 +337,31 @@ def test_the_envelope_with_default_arguments_is_0_at_total_steps():
     assert float(schedule(1000)) == 0.0  # min_ratio 0: the cosine reaches 0 at T (past warm-up)
     assert float(schedule(999)) > 0.0
     assert float(schedule(1)) == pytest.approx(1e-3 * 0.5 * (1 + math.cos(math.pi / 1000)))
+
+
+@pytest.mark.parametrize("rule", ["cumulative", "ratio", "energy", "energy-squared"])
+@pytest.mark.parametrize("sigma", [[3.0, math.nan, 1.0], [math.inf, 1.0, 0.5], [3.0, -1.0, 0.5]])
+def test_a_non_finite_or_negative_spectrum_is_refused_naming_sigma(rule, sigma):
+    # issue 61 §9: [3, nan, 1] gave 1 under `energy`, [inf, 1, .5] gave 2 under `ratio`, silently
+    with pytest.raises(ValueError, match="sigma must be a spectrum of finite, non-negative"):
+        lowrank.select_rank(jnp.asarray(sigma), 0.9, rule)
+
+
+def test_a_traced_spectrum_is_not_checked_and_still_selects():
+    rank = jax.jit(lambda s: lowrank.select_rank(s, 0.9, "energy"))(jnp.asarray([3.0, 2.0, 1.0]))
+    assert int(rank) == 3  # 3/6, 5/6 < 0.9 <= 6/6
+
+
+def test_another_models_optimiser_state_is_refused_without_reset():
+    # issue 61 §9: truncate(..., reset=False) with another tree's state returned that state
+    rng = np.random.default_rng(5)
+    params = {"l": layer_from(rng, 8, 4, 4, rank=4), "head": {"w": jnp.ones((4, 2))}}
+    other = {"x": {"w": jnp.ones((3, 3))}}
+    foreign = optax.adam(1e-3).init(other)
+    with pytest.raises(ValueError, match="opt_state does not match params"):
+        lowrank.truncate(params, foreign, beta=0.5, reset=False)
+    own = optax.adam(1e-3).init(params)
+    kept = lowrank.truncate(params, own, beta=0.5, reset=False).opt_state
+    assert jax.tree_util.tree_structure(kept) == jax.tree_util.tree_structure(own)
+    empty = optax.sgd(1e-3).init(params)  # no per-parameter state: nothing to match
+    assert lowrank.truncate(params, empty, beta=0.5, reset=False).opt_state == empty
