@@ -47,6 +47,16 @@ for seed in $(seq 0 14); do
   if [ "$code" -eq 130 ] || [ "$code" -eq 143 ]; then exit "$code"; fi
   $PY "$E/claim1_across_tasks.py" export "$R1"
 done
+# claim 2 in the paper's hedged form (issue 65 §2, claim2-hedged.md): 81 units of minutes on the
+# same frozen code, its committed rows restored first, exported when the sweep ends
+R2=$R/claim2-hedged
+$PY "$E/claim1_across_tasks.py" restore "$R2" --rows "$E/claim2-hedged/rows" || exit 2
+echo "== $(date -u +%FT%TZ) claim 2 hedged"
+$PY -m adarl.cli.main sweep "$E/claim2-hedged/claim2-hedged.yaml" --out "$R2" --workers 2 --no-progress
+code=$?
+echo "== $(date -u +%FT%TZ) claim 2 hedged exited $code"
+if [ "$code" -eq 130 ] || [ "$code" -eq 2 ]; then exit "$code"; fi
+$PY "$E/claim2_hedged.py" export "$R2"
 W=$E/paper-schedule-walker2d
 for entry in "$W/paper-schedule-walker2d-seeds-2-4.yaml|paper-schedule-walker2d" \
   "$W/paper-schedule-walker2d-sac-0-1.yaml|paper-schedule-walker2d" \

@@ -7,7 +7,7 @@ pre-registered analysis, from the runs' own rows only.
     python docs/experiments/claim1_across_tasks.py sweeps                  # write the sweep files
     python docs/experiments/claim1_across_tasks.py evaluate SWEEP_DIR [--code DIR]  # robustness grids
     python docs/experiments/claim1_across_tasks.py export SWEEP_DIR        # rows -> claim1-across-tasks/rows/
-    python docs/experiments/claim1_across_tasks.py restore SWEEP_DIR       # rows -> SWEEP_DIR (new machine)
+    python docs/experiments/claim1_across_tasks.py restore SWEEP_DIR [--rows DIR]  # rows -> SWEEP_DIR (new machine)
 
 SWEEP_DIR is the sweep folder (or the exported rows: run folders without checkpoints or policies).
 
@@ -720,7 +720,7 @@ def _folder(argv: list[str], verb: str) -> Path:
 
 
 def _main(argv: list[str]) -> int:
-    usage = "usage: claim1_across_tasks.py SWEEP_DIR [--out DIR] | power [--sims N] | sweeps | evaluate SWEEP_DIR [--code DIR] | export|restore SWEEP_DIR"  # fmt: skip
+    usage = "usage: claim1_across_tasks.py SWEEP_DIR [--out DIR] | power [--sims N] | sweeps | evaluate SWEEP_DIR [--code DIR] | export SWEEP_DIR | restore SWEEP_DIR [--rows DIR]"  # fmt: skip
     if argv[:1] in (["-h"], ["--help"]):
         print(__doc__)
         return 0
@@ -749,11 +749,14 @@ def _main(argv: list[str]) -> int:
         written, left = export(_folder(argv, verb))
         print(f"wrote {len(written)} files under {ROWS}; {len(left)} runs left (training or no grid yet)")  # fmt: skip
         return 0
-    if verb == "restore":
-        sweep = Path(argv[1]) if len(argv) == 2 else None
-        if sweep is None:
-            raise UsageError("restore takes one sweep folder")
-        print(f"restored {len(restore(sweep))} files into {sweep}")
+    if verb == "restore":  # also another design's rows: restore SWEEP_DIR --rows ROWS
+        rows = None
+        if argv[2:3] == ["--rows"] and len(argv) == 4:
+            rows, argv = Path(argv[3]), argv[:2]
+        if len(argv) != 2:
+            raise UsageError("restore takes one sweep folder (and --rows DIR)")
+        sweep = Path(argv[1])
+        print(f"restored {len(restore(sweep, rows))} files into {sweep}")
         return 0
     if not argv or verb.startswith("-"):
         print(usage, file=sys.stderr)

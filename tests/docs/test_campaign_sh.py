@@ -81,6 +81,16 @@ def _claim1(tmp_path: Path, blocks=range(15)) -> list[str]:
     return out
 
 
+def _claim2_hedged(tmp_path: Path) -> list[str]:
+    """Claim 2's hedged form after claim 1: restore its rows, its sweep, its export (code3)."""
+    r2 = tmp_path / "results/claim2-hedged"
+    return [
+        f"code3: {SCRIPT1} restore {r2} --rows {EXPERIMENTS / 'claim2-hedged/rows'}",
+        f"code3: sweep {EXPERIMENTS / 'claim2-hedged/claim2-hedged.yaml'} --out {r2} --workers 2 --no-progress",
+        f"code3: {EXPERIMENTS / 'claim2_hedged.py'} export {r2}",
+    ]
+
+
 def _runs(tmp_path: Path, evaluated=()) -> list[Path]:
     """Make Walker2d's run folders, one per seed and arm (control included); those of
     `evaluated` (arm, seed) get their suites/paper.csv. Returns the AdaRL and SAC runs."""
@@ -111,6 +121,7 @@ def test_the_sweeps_in_order_with_the_robustness_evaluation_after_walker2d(tmp_p
     after_each = [_robustness(runs)]  # AdaRL's five seeds, then SAC's (the stand-in writes none)
     assert commands == [
         *_claim1(tmp_path),
+        *_claim2_hedged(tmp_path),
         *(c for s in WALKER2D for c in [_sweep(tmp_path, s), *after_each]),
         _sweep(tmp_path, SWEEPS[3]),
     ]
@@ -128,7 +139,11 @@ def test_only_the_runs_without_their_robustness_evaluation_are_evaluated(tmp_pat
 
 def test_no_walker2d_runs_nothing_to_evaluate(tmp_path):
     code, commands = _campaign(tmp_path)
-    assert code == 0 and commands == [*_claim1(tmp_path), *(_sweep(tmp_path, s) for s in SWEEPS)]
+    assert code == 0 and commands == [
+        *_claim1(tmp_path),
+        *_claim2_hedged(tmp_path),
+        *(_sweep(tmp_path, s) for s in SWEEPS),
+    ]
 
 
 @pytest.mark.parametrize("code", [130, 2])
@@ -138,7 +153,7 @@ def test_a_stopped_or_refused_sweep_ends_the_campaign(tmp_path, code):
     (tmp_path / "commands").unlink()
     assert _campaign(tmp_path, {WALKER2D[0]: code}) == (
         code,
-        [*_claim1(tmp_path), _sweep(tmp_path, WALKER2D[0])],
+        [*_claim1(tmp_path), *_claim2_hedged(tmp_path), _sweep(tmp_path, WALKER2D[0])],
     )
 
 
@@ -164,7 +179,11 @@ def test_a_walker2d_sweep_with_a_failed_unit_is_not_evaluated(tmp_path):
     _runs(tmp_path)
     fails = {s: 1 for s in WALKER2D}  # 1: some unit failed
     code, commands = _campaign(tmp_path, fails)
-    assert code == 0 and commands == [*_claim1(tmp_path), *(_sweep(tmp_path, s) for s in SWEEPS)]
+    assert code == 0 and commands == [
+        *_claim1(tmp_path),
+        *_claim2_hedged(tmp_path),
+        *(_sweep(tmp_path, s) for s in SWEEPS),
+    ]
 
 
 @pytest.mark.parametrize(("code", "goes_on"), [(143, False), (130, False), (1, True)])
