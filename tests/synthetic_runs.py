@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import os
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from io import BytesIO
 from pathlib import Path
 
@@ -41,12 +41,19 @@ from adarl.runs.layout import (
 )
 from adarl.runs.logs import EVAL_COLUMNS, CsvLog, episode_columns
 
-DIMS = {"hopper": (11, 3), "walker2d": (17, 6), "ant": (105, 8), "humanoid": (348, 17)}
+DIMS = {
+    "hopper": (11, 3),
+    "walker2d": (17, 6),
+    "ant": (105, 8),
+    "humanoid": (348, 17),
+    "InvertedPendulum-v5": (4, 1),  # a task that is not the paper's (also with a user's XML)
+}
 PARAMS = {
     "hopper": {"torso_length": 0.4, "foot_length": 0.39},
     "walker2d": {"torso_length": 0.2, "foot_length": 0.1},
     "ant": {"gravity": 14.715, "wind": 1.0},
     "humanoid": {"gravity": 14.715, "wind": 1.0},
+    "InvertedPendulum-v5": {"mass_scale": 1.0, "gravity": 9.81},
 }
 LAYERS = ("actor_1", "q1_1", "q2_1")
 TRUNCATION_COLUMNS = ["step", "seed", "layer", "old_rank", "proposed_rank", "new_rank"]
@@ -102,12 +109,15 @@ def write_run(
     checkpoint: bool = True,
     done: bool = True,
     extra_config: dict | None = None,
+    eval_returns: Callable[[int, int, int], float] | None = None,
+    length: int = 1000,
 ) -> Path:
     """Write a small valid run folder `root/name` and return its path.
 
     `quality` scales the synthetic returns (final nominal return ≈ 1000·quality per seed, plus
-    seed noise); `algo="adarl"` adds truncations, spectra and a shrinking rank; `sac-fixed-rank`
-    needs `rank`.
+    seed noise), or `eval_returns(step, seed, episode)` gives each nominal evaluation's return
+    (episodes of `length` steps); `algo="adarl"` adds truncations, spectra and a shrinking rank;
+    `sac-fixed-rank` needs `rank`.
     """
     run = Path(root) / name
     run.mkdir(parents=True, exist_ok=True)
@@ -139,9 +149,12 @@ def write_run(
     rows = [
         {"step": step, "seed": s, "dynamics": "nominal", "episode": e,
          "return": 1000.0 * seed_quality[s] * step / total_steps + 10.0 * rng.standard_normal(),
-         "length": 1000}
+         "length": length}
         for step in eval_steps for s in seeds for e in range(2)
     ]  # fmt: skip
+    if eval_returns is not None:
+        rows = [{**row, "return": eval_returns(row["step"], row["seed"], row["episode"])}
+                for row in rows]  # fmt: skip
     _write_csv(run / EVAL_CSV, EVAL_COLUMNS, rows)
 
     params = PARAMS[task]
@@ -219,8 +232,10 @@ def write_sweep(
     hold: dict[str, float] | None = None,
     quality: float = 1.0,
     episodes: int = 2,
+    returns: Callable[[float, int, int], float] | None = None,
 ) -> Path:
-    """Write an `adarl evaluate --sweep` style result (CSV + JSON sidecar) into `run`."""
+    """Write an `adarl evaluate --sweep` style result (CSV + JSON sidecar) into `run`; the
+    returns are a bump around the parameter's default, or `returns(value, seed, episode)`."""
     from adarl.evaluation import grid
 
     run = Path(run)
@@ -239,6 +254,7 @@ def write_sweep(
                     1000 * quality * np.exp(-(((v - centre) / (0.5 * centre + 1e-9)) ** 2))
                     + 5 * rng.standard_normal()
                 )
+                ret = ret if returns is None else returns(float(v), s, e)
                 rows.append({"step": step, "seed": s, "dynamics": label, "episode": e, "return": ret,
                              "length": 1000, **{f"p_{k}": val for k, val in point.items()}})  # fmt: skip
     axis = grid.Axis(parameter, tuple(float(v) for v in values), f"{parameter}=…")

@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 import importlib
 import json
+import math
 import re
 from dataclasses import dataclass, field, replace
 
@@ -174,6 +175,30 @@ TASKS: dict[str, TaskSpec] = {
         ),
     )
 }
+
+
+#: One step's reward bounds (low, high) of the Gymnasium tasks whose reward function bounds it, at
+#: their default reward keywords (Gymnasium's mujoco/*_v4.py and *_v5.py): InvertedPendulum gives
+#: 1 per step (v5: 0 on the step that falls); InvertedDoublePendulum a healthy reward of 10 less
+#: penalties ≥ 0; Reacher and Pusher only penalties. Other tasks (Hopper's control cost, a user's
+#: own reward): unknown.
+STEP_REWARD_BOUNDS = {
+    **dict.fromkeys(("InvertedPendulum-v4", "InvertedPendulum-v5"), (0.0, 1.0)),
+    **dict.fromkeys(("InvertedDoublePendulum-v4", "InvertedDoublePendulum-v5"), (-math.inf, 10.0)),
+    **dict.fromkeys(("Reacher-v4", "Reacher-v5", "Pusher-v4", "Pusher-v5"), (-math.inf, 0.0)),
+}
+
+
+def return_bounds(spec: TaskSpec, max_steps: int) -> tuple[float, float]:
+    """The lowest and highest return an episode of at most `max_steps` steps of `spec` can
+    have, from `STEP_REWARD_BOUNDS` (a bound of 0 holds for any length); (-inf, inf) where a
+    bound is unknown: another task, an env-module's env, or env-kwargs that set a reward
+    keyword (`healthy_reward`, `reward_dist_weight`, …)."""
+    step = STEP_REWARD_BOUNDS.get(spec.gym_id)
+    if step is None or spec.env_module or any("reward" in k for k, _ in spec.env_kwargs):
+        return -math.inf, math.inf
+    low, high = step  # low ≤ 0 ≤ high: the longest episode reaches both
+    return low * max_steps, high * max_steps
 
 
 def list_tasks() -> list[str]:

@@ -4,7 +4,9 @@ a number or interval."""
 
 from __future__ import annotations
 
+import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -13,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from adarl.algos import registry
+from adarl.errors import UsageError
 from adarl.report import figures, tables
 
 REFERENCE = registry.REFERENCE
@@ -119,3 +122,75 @@ def rounded(value: float) -> str:
 def number_text(value: float) -> str:
     """One decimal, or a dash where a method lacks the ring (runs evaluated on other grids)."""
     return f"{value:.1f}" if np.isfinite(value) else tables.DASH
+
+
+# ----------------------------------------------------------------------------- the run's task
+def _task_spec(run):
+    """The run's `TaskSpec` (`adarl.envs.tasks.task_of`), or None where it cannot be made here
+    (an env-module this process cannot import, a task since renamed)."""
+    try:
+        from adarl.envs.tasks import task_of
+
+        return task_of({**dict(run.config), "task": run.task})
+    except (ImportError, AttributeError, KeyError, TypeError, UsageError):
+        return None
+
+
+def return_bounds(run, max_steps: int | None = None) -> tuple[float, float]:
+    """The lowest and highest return an episode of `run`'s task can have
+    (`adarl.envs.tasks.return_bounds`) in episodes of at most `max_steps` steps (default: the
+    run's time limit); (-inf, inf) where unknown."""
+    spec = _task_spec(run)
+    if spec is None:
+        return -math.inf, math.inf
+    from adarl.envs.tasks import return_bounds as bounds
+
+    limit = max_steps or run.config.get("max_episode_steps") or spec.max_episode_steps
+    return bounds(spec, int(limit))
+
+
+def nominal_value(run, param: str) -> float | None:
+    """`param`'s value under `run`'s task's `nominal` dynamics: the centre of its schedule, a
+    Gymnasium default, or the model's own value of an addressed parameter (`body:bob.mass`);
+    None where the task cannot be made or has no such parameter."""
+    spec = _task_spec(run)
+    if spec is None:
+        return None
+    try:
+        from adarl.envs.dynamics import parse_dynamics, xml_path
+        from adarl.envs.elements import address_default
+        from adarl.envs.params import is_addressed
+
+        centroid = parse_dynamics("nominal", spec).centroid()
+        if param in centroid:
+            return float(centroid[param])
+        if param in spec.all_params:
+            return float(spec.all_params[param])
+        return address_default(xml_path(spec), param) if is_addressed(param) else None
+    except (ImportError, AttributeError, KeyError, TypeError, ValueError, UsageError):
+        return None
+
+
+def widest_bounds(a: tuple[float, float] | None, b: tuple[float, float]) -> tuple[float, float]:
+    """Return bounds that hold for the runs or evaluations of both `a` and `b` (their time
+    limits may differ); `a` None: `b`."""
+    return b if a is None else (min(a[0], b[0]), max(a[1], b[1]))
+
+
+def band_text(bounds: Mapping[str, tuple[float, float]], confidence: float = 0.95) -> str:
+    """What a curve's band over seeds is, for `bounds[task]`, the returns each task drawn can
+    give: a Student-t interval of the mean (normal theory), clipped to them where known
+    (`figures.clip_band`), else said to possibly reach past them."""
+    known = {t: b for t, b in bounds.items() if math.isfinite(b[0]) or math.isfinite(b[1])}
+    band = f"{confidence:.0%} Student-t band (normal theory"
+    if not known:
+        return f"{band}: from few seeds it is wide and may reach returns the task cannot give)"
+    ranges = "; ".join(f"{task}: {_range_text(*b)}" for task, b in known.items())
+    rest = "" if len(known) == len(bounds) else "; other tasks' bands not clipped"
+    return f"{band}, clipped to the returns the task can give, {ranges}{rest})"
+
+
+def _range_text(low: float, high: float) -> str:
+    if math.isfinite(low) and math.isfinite(high):
+        return f"{low:,.0f} to {high:,.0f}"
+    return f"at least {low:,.0f}" if math.isfinite(low) else f"at most {high:,.0f}"

@@ -4,7 +4,10 @@ backend for PDF). Each function takes tidy data and returns a `matplotlib.figure
 `save_figure` writes it as PNG and PDF. Sizes and fonts are for a two-column paper: a full-width
 figure is 7 in wide, a single-column one 3.4 in, with 8 pt text.
 
-Bands over seeds are Student-t 95% confidence intervals of the mean (`stats.t_interval`).
+Bands over seeds are Student-t 95% confidence intervals of the mean (`stats.t_interval`),
+clipped to the returns the task can give where those are known (`clip_band`; from 2 seeds a
+t band is the mean ± 12.7 standard errors, far past them). Curves of at most `FEW_POINTS` points
+carry markers (one evaluation is otherwise not drawn at all).
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import io
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -43,6 +47,9 @@ STYLE = {
     "savefig.dpi": 200,
     "pdf.fonttype": 42,  # embed TrueType: text stays editable and searchable
 }
+UNBOUNDED = (-math.inf, math.inf)  # a return with no known bound
+FEW_POINTS = 30  # a curve with at most this many points has a marker at each
+MARGIN = 0.05  # room around the data on a return axis, as a fraction of its height
 TRUNCATION_STYLE = {"color": "red", "linestyle": "--", "linewidth": 0.8, "alpha": 0.8}
 INTRINSIC_STYLE = {"color": "black", "linestyle": ":", "linewidth": 1.0}
 
@@ -92,11 +99,23 @@ def _grid(n_panels: int, width: float = FULL_WIDTH, max_cols: int = 4, sharey=Fa
     return fig, list(axes[:n_panels])
 
 
-def _band(ax, x, values, label, colour=None, **line):
-    """Mean over seeds (rows of `values`) with a 95% t band."""
+def clip_band(
+    low: np.ndarray, high: np.ndarray, bounds: tuple[float, float] = UNBOUNDED
+) -> tuple[np.ndarray, np.ndarray]:
+    """A band's edges within `bounds`, the lowest and highest return the task can give
+    (`adarl.envs.tasks.return_bounds`): a mean over seeds never leaves them, so neither does an
+    interval of it that is drawn."""
+    return np.clip(low, *bounds), np.clip(high, *bounds)
+
+
+def _band(ax, x, values, label, colour=None, bounds=UNBOUNDED, **line):
+    """Mean over seeds (rows of `values`) with a 95% t band within `bounds` (`clip_band`)."""
     centre, low, high = t_interval(values)
+    low, high = clip_band(low, high, bounds)
     (handle,) = ax.plot(x, centre, label=label, color=colour, **line)
-    if values.shape[0] > 1:
+    if values.shape[0] > 1 and len(x) == 1:  # a band of no width is not drawn: the interval
+        ax.vlines(x, low, high, color=handle.get_color(), alpha=0.4, linewidth=3)
+    elif values.shape[0] > 1:
         ax.fill_between(x, low, high, color=handle.get_color(), alpha=0.2, linewidth=0)
     return handle
 
@@ -129,10 +148,48 @@ def _log2_axis(ax, which: str) -> None:
     axis.set_minor_locator(matplotlib.ticker.NullLocator())
 
 
+def _few_points_marker(n_points: int) -> dict:
+    """A marker at each point of a curve of at most `FEW_POINTS` points."""
+    return {"marker": "o", "markersize": 3} if n_points <= FEW_POINTS else {}
+
+
 def _from_zero(ax) -> None:
-    """The y-axis reaches 0 (a return axis that starts at 313 makes 2% look like a collapse)."""
-    low, high = ax.get_ylim()
-    ax.set_ylim(min(low, 0.0), max(high, 0.0))
+    """The y-axis includes 0 (a return axis that starts at 313 makes 2% look like a collapse)
+    and every point and band of `ax` and of the axes sharing its y-axis, with `MARGIN` of the
+    axis' height above and below them: no point sits on a spine, half cut. Data that all lie a
+    margin or more above 0 get an axis from exactly 0."""
+    boxes = [a.dataLim for a in ax.get_shared_y_axes().get_siblings(ax)]
+    lows = [b.intervaly[0] for b in boxes if np.isfinite(b.intervaly).all()]
+    highs = [b.intervaly[1] for b in boxes if np.isfinite(b.intervaly).all()]
+    if not lows:
+        return
+    low, high = min(lows), max(highs)
+    bottom, top = min(low, 0.0), max(high, 0.0)
+    pad = MARGIN * (top - bottom) or 1.0
+    ax.set_ylim(bottom - pad if low < pad else 0.0, top + pad)
+
+
+def _legend_below(fig, ax) -> None:
+    """`ax`'s legend under the figure's axes, outside them: it covers no point, line or band."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 3))
+
+
+def _legend_above(ax) -> None:
+    """`ax`'s legend just above it, outside it (covering no point, line or band) and inside the
+    figure's layout; the figure's title goes above it as its suptitle (an axes title would
+    overlap it), the space under the figure stays free for a note (`robustness_curve`'s
+    base)."""
+    handles, labels = ax.get_legend_handles_labels()
+    ax.legend(
+        handles,
+        labels,
+        loc="lower center",
+        bbox_to_anchor=(0.5, 1.0),
+        ncols=min(len(labels), 3),
+        frameon=False,
+        borderaxespad=0.2,
+    )
 
 
 def steps_label(steps: float) -> str:
@@ -179,9 +236,12 @@ def training_curves(
     truncations: Mapping[str, Sequence[int]] | None = None,
     colours: Mapping[str, tuple] | None = None,
     legend_loc: str = "best",
+    bounds: Mapping[str, tuple[float, float]] | None = None,
 ) -> Figure:
     """Return over training per task (one panel each), one line per method with its band over
-    seeds, and the truncation steps as red dashed vertical lines.
+    seeds (within `bounds[task]`, the returns the task can give, where given: `clip_band`;
+    markers on a curve of few evaluations), and the truncation steps as red dashed vertical
+    lines.
 
     `curves[task][method]` has columns `step, seed, return`; `legend_loc` is matplotlib's `loc`,
     or "below" for a legend under each panel, clear of every curve (the figure grows to hold it).
@@ -192,7 +252,16 @@ def training_curves(
     for ax, task in zip(axes, tasks):
         for method in sort_methods(curves[task]):
             steps, values = _by_seed(curves[task][method], "step", "return")
-            _band(ax, steps, values, method, colours.get(method))
+            limits = (bounds or {}).get(task, UNBOUNDED)
+            _band(
+                ax,
+                steps,
+                values,
+                method,
+                colours.get(method),
+                limits,
+                **_few_points_marker(len(steps)),
+            )
         for i, step in enumerate((truncations or {}).get(task, [])):
             ax.axvline(step, label="truncation" if i == 0 else None, **TRUNCATION_STYLE)
         ax.set_title(task)
@@ -213,11 +282,14 @@ def rank_trajectories(
     intrinsic_rank: int | None = None,
     title: str = "",
     truncations: Sequence[int] = (),
+    end: float | None = None,
 ) -> Figure:
     """Rank of each bottleneck (one panel per layer) over training, one line per seed, with the
     intrinsic rank 2·d_a+1 as a horizontal line, and each level written on its line where it
-    begins (`_level_labels`: 35, 30, 27, 26 read off the line, not between log-2 ticks).
-    `history`: `step, seed, layer, rank`."""
+    begins (`_level_labels`: 35, 30, 27, 26 read off the line, not between log-2 ticks). Each
+    line holds its last rank to `end` (the run's last step), so a cut after the last log row
+    still shows its level. `history`: `step, seed, layer, rank` (`collect.rank_history`: from
+    the initial rank, with every cut at its step)."""
     layers = sorted(history["layer"].unique())
     fig, axes = _grid(len(layers), max_cols=3, sharey=True)
     levels = []
@@ -227,6 +299,8 @@ def rank_trajectories(
         for seed, rows in data.groupby("seed"):
             rows = rows.sort_values("step")
             steps, ranks = rows["step"].to_numpy(float), rows["rank"].to_numpy(float)
+            if end is not None and len(steps) and steps[-1] < end:
+                steps, ranks = np.r_[steps, end], np.r_[ranks, ranks[-1]]
             (line,) = ax.plot(steps, ranks, drawstyle="steps-post", label=f"seed {seed}")
             changed = np.r_[True, ranks[1:] != ranks[:-1]] & np.isfinite(ranks)
             starts += [(x, r, line.get_color()) for x, r in zip(steps[changed], ranks[changed])]
@@ -293,10 +367,13 @@ def robustness_curve(
     nominal: float | None = None,
     colours: Mapping[str, tuple] | None = None,
     base: str = "",
+    bounds: tuple[float, float] = UNBOUNDED,
 ) -> Figure:
-    """Return against one swept parameter, one line per method with its band over seeds, on a
-    y-axis from 0 (`_from_zero`); `base`, the point the sweep moves one parameter away from (its
-    dynamics and the other parameters' values), is written under the axes.
+    """Return against one swept parameter, one line per method with its band over seeds (within
+    `bounds`, the returns the task can give: `clip_band`), on a y-axis that includes 0 with room
+    around every point (`_from_zero`), the nominal value as a grey dotted vertical line and the
+    legend above the axes, under the title; `base`, the point the sweep moves one parameter away
+    from (its dynamics and the other parameters' values), is written under the figure.
 
     `data`: `method, seed, value, return` (return: a seed's mean over episodes at that value).
     """
@@ -305,14 +382,14 @@ def robustness_curve(
     ax = fig.add_subplot()
     for method in sort_methods(data["method"].unique()):
         x, values = _by_seed(data[data["method"] == method], "value", "return")
-        _band(ax, x, values, method, colours.get(method), marker="o", markersize=3)
+        _band(ax, x, values, method, colours.get(method), bounds, marker="o", markersize=3)
     if nominal is not None:
         ax.axvline(nominal, color="grey", linestyle=":", linewidth=1.0, label="nominal")
     _from_zero(ax)
     ax.set_xlabel(parameter)
     ax.set_ylabel("return")
-    ax.set_title(title or f"robustness to {parameter}")
-    ax.legend(loc="best")
+    fig.suptitle(title or f"robustness to {parameter}", fontsize=STYLE["axes.titlesize"])
+    _legend_above(ax)
     if base:
         fig.supxlabel(_wrapped(f"base: {base}", 70), fontsize=6.5, ha="center")
     return fig
@@ -356,11 +433,13 @@ def robustness_size_curve(
     title: str = "",
     colours: Mapping[str, tuple] | None = None,
     xlabel: str = "perturbation size (max_i |p_i − c_i| / a_i)",
+    bounds: tuple[float, float] = UNBOUNDED,
 ) -> Figure:
     """Return against the size of the perturbation (`adarl.report.perturbation`), one line
-    per method with its 95% t band over seeds. Left: each seed's mean return over the grid points
-    of a ring; right: the worst point within the size (points of size ≤ r). A dotted line marks
-    the edge of the training range (size 1).
+    per method with its 95% t band over seeds (within `bounds`: `clip_band`). Left: each seed's
+    mean return over the grid points of a ring; right: the worst point within the size (points
+    of size ≤ r). A dotted line marks the edge of the training range (size 1); the legend is
+    under the panels.
 
     `data`: `method, seed, ring, mean, worst_within` (`perturbation.ring_returns` per method)."""
     colours = colours or method_colours(data["method"].unique())
@@ -370,15 +449,16 @@ def robustness_size_curve(
     for ax, (column, label) in zip(axes, panels):
         for method in sort_methods(data["method"].unique()):
             x, values = _by_seed(data[data["method"] == method], "ring", column)
-            _band(ax, x, values, method, colours.get(method), marker="o", markersize=3)
+            _band(ax, x, values, method, colours.get(method), bounds, marker="o", markersize=3)
         if float(data["ring"].max()) >= 1.0:
             ax.axvline(1.0, color="grey", linestyle=":", linewidth=1.0, label="training range")
         ax.set_xlabel(xlabel)
         ax.set_title(label)
-        ax.set_xlim(left=0)
+        right = ax.get_xlim()[1]
+        ax.set_xlim(-MARGIN * right, right)  # sizes are ≥ 0; a ring of size 0 is not half cut
     _from_zero(axes[0])  # the panels share their y-axis
     axes[0].set_ylabel("return")
-    axes[1].legend(loc="best")
+    _legend_below(fig, axes[1])
     if title:
         fig.suptitle(title)
     return fig

@@ -32,6 +32,7 @@ def intrinsic_rank(run: Run) -> int | None:
 def training_section(runs: list[Run], folder: Path, colours) -> Section:
     curves: dict[str, dict[str, list[pd.DataFrame]]] = {}
     truncations: dict[str, set[int]] = {}
+    bounds: dict[str, tuple[float, float]] = {}
     sources = set()
     for r in runs:
         curve, source = collect.training_curve(r)
@@ -40,17 +41,20 @@ def training_section(runs: list[Run], folder: Path, colours) -> Section:
         sources.add(source)
         curves.setdefault(r.task, {}).setdefault(r.label, []).append(curve)
         truncations.setdefault(r.task, set()).update(collect.truncation_steps(r))
+        bounds[r.task] = common.widest_bounds(bounds.get(r.task), common.return_bounds(r))
     if not curves:
         return Section("Training curves", "No evaluation or episode logs found.\n", empty=True)
     tasks = sort_tasks(curves)
     merged = {t: {m: pd.concat(frames) for m, frames in curves[t].items()} for t in tasks}
     fig = figures.training_curves(
-        merged, {t: sorted(truncations.get(t, ())) for t in tasks}, colours
+        merged, {t: sorted(truncations.get(t, ())) for t in tasks}, colours, bounds=bounds
     )
     files = common.save_figure(folder, fig, "training_curves")
+    band = common.band_text({t: bounds[t] for t in tasks})
     text = (
         "Return over training (source: " + "; ".join(sorted(sources)) + "), mean over seeds with a "
-        "95% t band; red dashed lines mark the steps at which rank-adaptive runs truncated.\n"
+        f"{band}; markers where a curve has at most {figures.FEW_POINTS} points; red dashed lines "
+        "mark the steps at which rank-adaptive runs truncated.\n"
     )
     return Section("Training curves", text, files)
 
@@ -62,7 +66,8 @@ def rank_section(runs: list[Run], folder: Path) -> Section:
         if history.empty or not steps:
             continue
         intrinsic = intrinsic_rank(r)
-        fig = figures.rank_trajectories(history, intrinsic, f"{r.task} {r.label}", steps)
+        end = max(float(history["step"].max()), float(collect.final_step(r) or 0))
+        fig = figures.rank_trajectories(history, intrinsic, f"{r.task} {r.label}", steps, end)
         files += common.save_figure(folder, fig, f"ranks_{r.task}_{r.label}")
         final = collect.final_ranks(r)
         per_layer = final.groupby("layer")["rank"].agg(lambda s: " ".join(str(int(v)) for v in s))
@@ -77,7 +82,9 @@ def rank_section(runs: list[Run], folder: Path) -> Section:
     files.append(write_file(folder, "tables/rank_settling.md", md))
     files.append(write_file(folder, "tables/rank_settling.csv", csv_text(table)))
     text = (
-        "Estimated rank of each bottleneck, per seed; dotted line: 2·d_a+1.\n\n"
+        "Estimated rank of each bottleneck, per seed, from the initial rank through every cut "
+        "(truncations.csv's old and new ranks at each cut's step) to the run's last step; dotted "
+        "line: 2·d_a+1.\n\n"
         + "\n".join(lines)
         + "\n\nWhere the ranks stopped (per bottleneck, over seeds): the final rank (mean and "
         "range), the truncations that cut it and the cuts the retain clause refused (totals "

@@ -67,6 +67,7 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
     groups: dict[tuple[str, str, str], list[pd.DataFrame]] = {}
     held: dict[tuple[str, str, str], str] = {}
     bases: dict[tuple[str, str, str], str] = {}
+    bounds: dict[tuple[str, str, str], tuple[float, float]] = {}
     nominal: dict[tuple[str, str], float] = {}
     for r in runs:
         for ev in collect.evaluations(r):
@@ -93,6 +94,13 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
             )
             key = (r.task, ev.name, param)
             groups.setdefault(key, []).append(per_seed.assign(method=r.label))
+            if (r.task, param) not in nominal:  # no nominal evaluation recorded it: the task's
+                value = common.nominal_value(r, param)
+                if value is not None:
+                    nominal[(r.task, param)] = value
+            limit = ev.meta.get("max_episode_steps")
+            found = common.return_bounds(r, int(limit) if limit else None)
+            bounds[key] = common.widest_bounds(bounds.get(key), found)
             held[key] = ", ".join(f"{k}={v:g}" for k, v in (ev.meta.get("hold") or {}).items())
             base = base_point(ev.table, param, ev.meta.get("dynamics"))
             if bases.setdefault(key, base) != base:
@@ -108,15 +116,20 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
         task, name, param = key
         data = pd.concat(groups[key], ignore_index=True)
         title = f"{task}: {param}" + (f" (held: {held[key]})" if held[key] else "")
-        fig = figures.robustness_curve(
-            data, param, title, nominal.get((task, param)), colours, bases[key]
-        )
+        value = nominal.get((task, param))
+        fig = figures.robustness_curve(data, param, title, value, colours, bases[key], bounds[key])
         files += common.save_figure(folder, fig, f"robustness_{task}_{name}")
-        lines.append(f"- {title}: {', '.join(sort_methods(data['method'].unique()))}")
+        at = "" if value is None else f"; nominal {value:.4g}"
+        lines.append(f"- {title}: {', '.join(sort_methods(data['method'].unique()))}{at}")
+    per_task: dict[str, tuple[float, float]] = {}
+    for key in groups:
+        per_task[key[0]] = common.widest_bounds(per_task.get(key[0]), bounds[key])
+    band = common.band_text({t: per_task[t] for t in order})
     text = (
-        "Return against each swept parameter (mean over seeds of each seed's mean over episodes, "
-        "95% t band; the y-axis starts at 0); grey dotted line: the nominal value; under each "
-        "figure, its base point (the dynamics and the values of the parameters not swept).\n\n"
+        "Return against each swept parameter: the mean over seeds of each seed's mean over "
+        f"episodes, with a {band}, on a y-axis that includes 0. Grey dotted line: the nominal "
+        "value (the task's `nominal` dynamics); the legend is above the axes; under each figure, "
+        "its base point (the dynamics and the values of the parameters not swept).\n\n"
         + "\n".join(lines)
         + "\n"
     )
@@ -128,12 +141,16 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
     --suite`), mean over seeds with bootstrap intervals; a heatmap per two-parameter suite and,
     for suites over the training parameters, return against the size of the perturbation."""
     found: dict[tuple[str, str, str], list[tuple[pd.DataFrame, pd.DataFrame]]] = {}
+    bounds: dict[str, tuple[float, float]] = {}
     for r in runs:
         for ev in collect.evaluations(r):
             name = ev.meta.get("suite")
             if name and ev.meta.get("final_checkpoint", True):
                 summary = suites.seed_summary(ev.table, name)
                 found.setdefault((r.task, name, r.label), []).append((summary, ev.table))
+                limit = ev.meta.get("max_episode_steps")
+                found_bounds = common.return_bounds(r, int(limit) if limit else None)
+                bounds[r.task] = common.widest_bounds(bounds.get(r.task), found_bounds)
     title = "Robustness suites"
     if not found:
         return Section(
@@ -167,7 +184,7 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
                 *heatmap_grid(table, x, y), x, y, f"{task}, {name}: {method}"
             )
             files += common.save_figure(folder, fig, f"suite_{task}_{name}_{method}")
-    size_files, size_text = size_curves(found, keys, folder, options, colours)
+    size_files, size_text = size_curves(found, keys, folder, options, colours, bounds)
     files += size_files
     df = pd.DataFrame(rows)
     files.insert(0, write_file(folder, "tables/suites.csv", csv_text(df)))
@@ -193,11 +210,13 @@ def suites_section(runs: list[Run], folder: Path, options: ReportOptions, colour
 
 
 def size_curves(
-    found: dict, keys: list, folder: Path, options: ReportOptions, colours=None
+    found: dict, keys: list, folder: Path, options: ReportOptions, colours=None, bounds=None
 ) -> tuple[list[Path], str]:
     """Return against the size of the perturbation (`adarl.report.perturbation`) for every
     task × suite whose parameters all have a training range: one figure and one table each,
-    `figures/robustness_size_<task>_<suite>`, `tables/robustness_size_<task>_<suite>.csv`."""
+    `figures/robustness_size_<task>_<suite>`, `tables/robustness_size_<task>_<suite>.csv`;
+    bands within `bounds[task]` (the returns the task can give) where given."""
+    bounds = bounds or {}
     from adarl.report import perturbation
 
     curves: dict[tuple[str, str], list[pd.DataFrame]] = {}
@@ -213,7 +232,9 @@ def size_curves(
     for (task, name), frames in curves.items():
         data = pd.concat(frames, ignore_index=True)
         stem = f"robustness_size_{task}_{name}"
-        fig = figures.robustness_size_curve(data, f"{task}, suite {name}", colours)
+        fig = figures.robustness_size_curve(
+            data, f"{task}, suite {name}", colours, bounds=bounds.get(task, figures.UNBOUNDED)
+        )
         files += common.save_figure(folder, fig, stem)
         summary = perturbation.ring_summary(data, options.confidence)
         order = sort_methods(summary["method"].unique())
@@ -235,14 +256,17 @@ def size_curves(
         )  # fmt: skip
     if not lines:
         return files, ""
+    band = common.band_text({task: bounds.get(task, figures.UNBOUNDED) for task, _ in curves})
     text = (
         "\n\n**Return against the size of the perturbation.** The size of a grid point is "
         "max_i |p_i − c_i| / a_i, its distance from the nominal point c in units of each "
         "parameter's training half-range a (1 = the edge of the training range; "
         "docs/evaluation.md). Left: per seed, the mean return over the points of each size "
         "(a ring); right: the worst point of size ≤ r, the worst-case return of the training box "
-        f"scaled by r. Mean over seeds with a {options.confidence:.0%} t band; intervals in "
-        "`tables/robustness_size_<task>_<suite>.csv`.\n\n" + "\n".join(lines) + "\n"
+        f"scaled by r. Mean over seeds with a {band}, the legend under the panels; "
+        f"{options.confidence:.0%} intervals in `tables/robustness_size_<task>_<suite>.csv`.\n\n"
+        + "\n".join(lines)
+        + "\n"
     )
     return files, text
 

@@ -333,7 +333,10 @@ def training_curve(run: Run) -> tuple[pd.DataFrame, str]:
 def rank_history(run: Run) -> pd.DataFrame:
     """Rank of each bottleneck over training: columns `step, seed, layer, rank`, from train.csv's
     logging points and, at the exact step of each truncation, its new rank (truncations.csv), so
-    that a step plot changes where the rank did, not at the next logging point."""
+    that a step plot changes where the rank did, not at the next logging point. Where a
+    bottleneck's first truncation comes before its first logging point (a cut at step 4,950,
+    the first row at 5,000), the history starts at step 0 at that cut's old rank, the initial
+    rank: the cut and the level it cut from are not lost."""
     log = read_table(run.path / TRAIN_CSV)
     columns = layout.rank_columns(log.columns)
     if log.empty or not columns:
@@ -345,7 +348,16 @@ def rank_history(run: Run) -> pd.DataFrame:
     long = long.dropna(subset=["rank"])
     cuts = read_table(run.path / TRUNCATIONS_CSV)
     if not cuts.empty:
+        first_cut = cuts.sort_values("step", kind="stable").groupby(["seed", "layer"]).head(1)
+        first_log = long.groupby(["seed", "layer"])["step"].min()
+        logged = [
+            first_log.get((s, layer), np.inf)
+            for s, layer in zip(first_cut["seed"], first_cut["layer"])
+        ]
+        start = first_cut[first_cut["step"].to_numpy(float) < np.asarray(logged, float)]
+        start = start[["seed", "layer", "old_rank"]].rename(columns={"old_rank": "rank"})
         cuts = cuts[["step", "seed", "layer", "new_rank"]].rename(columns={"new_rank": "rank"})
+        cuts = pd.concat([start.assign(step=0)[cuts.columns], cuts], ignore_index=True)
         long = pd.concat([cuts, long], ignore_index=True)  # a truncation's row wins a tie
         long = long.drop_duplicates(["step", "seed", "layer"], keep="first")
     return long.sort_values(["step", "seed", "layer"], kind="stable").reset_index(drop=True)

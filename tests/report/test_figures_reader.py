@@ -1,5 +1,5 @@
 """What a reader takes from the figures is in the data: a spectrum shows only the network's own
-components (no padding to the width it is stored at), a robustness axis starts at 0 and the
+components (no padding to the width it is stored at), a robustness axis includes 0 and the
 figure says which point the sweep moves away from, and a rank panel's levels can be read."""
 
 import numpy as np
@@ -117,7 +117,7 @@ def test_the_reports_robustness_figure_states_its_base_point(tmp_path, drawn):
     base = fig._supxlabel.get_text().replace("\n", " ")
     assert base == "base: nominal dynamics; foot_length 0.39"
     assert fig.axes[0].get_ylim()[0] == 0
-    assert "base point" in section.text and "starts at 0" in section.text
+    assert "base point" in section.text and "a y-axis that includes 0" in section.text
 
 
 def test_the_base_point_lists_every_other_parameter():
