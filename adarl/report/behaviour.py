@@ -51,6 +51,12 @@ MEANING = {
 }
 
 
+def plural(word: str) -> str:
+    """`word` (one of `WORDS`) for several seeds: falls → fall, stands or moves → stand or
+    move."""
+    return " ".join(w[:-1] if w.endswith("s") else w for w in word.split(" "))
+
+
 def rule_text() -> str:
     """The rule of `describe` in one line, for tables and the docs."""
     return (

@@ -26,6 +26,7 @@ from adarl.report.common import (
     ReportOptions,
     ScoreNote,
     Section,
+    seed_ids,
     write_file,
 )
 from adarl.report.comparisons import contrast_groups, contrast_section, control_section
@@ -324,7 +325,7 @@ def write_index(
     order = sort_tasks(r.task for r in runs)
     methods = sort_methods(r.label for r in runs)
     budgets = sorted(
-        {(r.task, r.label, r.total_steps, " ".join(map(str, r.seeds))) for r in runs},
+        {(r.task, r.label, r.total_steps, tuple(sorted(map(int, r.seeds)))) for r in runs},
         key=lambda b: (order.index(b[0]), methods.index(b[1]), str(b[2]), b[3]),
     )
     lines = [
@@ -335,9 +336,12 @@ def write_index(
         "",
         "## Budget and seeds",
         "",
-        tables.markdown_table(
-            ["task", "method", "steps per seed", "seeds"],
-            [[t, m, f"{s:,}" if s is not None else "—", seeds] for t, m, s, seeds in budgets],
+        tables.markdown_table(  # how many seeds, then which: a lone seed 0 is not "0 seeds"
+            ["task", "method", "steps per seed", "seeds", "seed ids"],
+            [
+                [t, m, f"{s:,}" if s is not None else "—", str(len(seeds)), seed_ids(seeds)]
+                for t, m, s, seeds in budgets
+            ],
         ),
     ]
     lines += _section_lines(folder, sections)

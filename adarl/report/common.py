@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -194,3 +194,16 @@ def _range_text(low: float, high: float) -> str:
     if math.isfinite(low) and math.isfinite(high):
         return f"{low:,.0f} to {high:,.0f}"
     return f"at least {low:,.0f}" if math.isfinite(low) else f"at most {high:,.0f}"
+
+
+def seed_ids(seeds: Iterable[int]) -> str:
+    """Seed ids as text, runs of three or more consecutive ids as a range: `0`, `10, 11`,
+    `0–4, 7`."""
+    ids = sorted({int(s) for s in seeds})
+    parts, start = [], 0
+    for i in range(1, len(ids) + 1):
+        if i == len(ids) or ids[i] != ids[i - 1] + 1:
+            run = ids[start:i]
+            parts += [f"{run[0]}–{run[-1]}"] if len(run) >= 3 else [str(v) for v in run]
+            start = i
+    return ", ".join(parts)

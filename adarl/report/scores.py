@@ -181,7 +181,7 @@ def runs_section(runs: list[Run], finals: dict, folder: Path) -> Section:
                 "task": r.task,
                 "method": r.label,
                 "training dynamics": r.dynamics,
-                "seeds": " ".join(map(str, r.seeds)),
+                "seed ids": " ".join(map(str, r.seeds)),  # ids, not a count
                 "budget (steps per seed)": r.total_steps,
                 "final checkpoint": last,
                 "finished": "yes" if r.done_step is not None else "no",
@@ -256,7 +256,9 @@ def behaviour_section(runs: list[Run], folder: Path) -> Section:
             mean, std = stats.mean_std(values) if len(values) else (np.nan, np.nan)
             cells.append(tables.format_mean_std(mean, std, len(values), digits))
         counts = group["does"].value_counts()
-        cells.append(", ".join(f"{w} {counts[w]}" for w in behaviour.WORDS if w in counts))
+        cells.append(  # seeds that … fall 2, stand 1
+            ", ".join(f"{behaviour.plural(w)} {counts[w]}" for w in behaviour.WORDS if w in counts)
+        )
         rows.append(cells)
     md = tables.markdown_table(
         ["task", "method", "episode length", "forward distance (m)", "seeds that …"], rows

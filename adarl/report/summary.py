@@ -160,7 +160,8 @@ def behaviour_line(table) -> str:
     if not several:
         text += f": {words[0]} ({behaviour.MEANING[words[0]]})"
     elif len(seeds) == 1:
-        text += f": all {len(words)} seeds {words[0]} ({behaviour.MEANING[words[0]]})"
+        every = "both seeds" if len(words) == 2 else f"all {len(words)} seeds"
+        text += f": {every} {behaviour.plural(words[0])} ({behaviour.MEANING[words[0]]})"
     else:
         text += "; " + "; ".join(
             f"{w} ({behaviour.MEANING[w]}): seed{'s' if len(s) > 1 else ''} {', '.join(s)}"

@@ -357,6 +357,6 @@ def test_behaviour_table_prefers_adarl_evaluate_with_distance(tmp_path, no_figur
     index = (out / "index.md").read_text()
     assert (
         "## What the final policies do" in index
-        and "| hopper | sac-sparse | 600 ± 566 | 2.50 ± 2.12 | falls 1, moves 1 |" in index
-        and "| hopper | sac | 1000 ± 0 | — | stands or moves 2 |" in index
+        and "| hopper | sac-sparse | 600 ± 566 | 2.50 ± 2.12 | fall 1, move 1 |" in index
+        and "| hopper | sac | 1000 ± 0 | — | stand or move 2 |" in index
     )

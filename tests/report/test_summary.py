@@ -31,7 +31,7 @@ def test_summary_of_an_adarl_run_has_returns_ranks_files_and_next_commands(tmp_p
     assert lines[3].startswith(f"final checkpoint: {final.mean():.1f} ± {final.std(ddof=1):.1f}")
     assert lines[4] == (
         "what the final policies do: episodes last 1,000 of 1,000 steps on average, forward "
-        "distance not recorded (`adarl evaluate` records it): all 3 seeds stands or moves "
+        "distance not recorded (`adarl evaluate` records it): all 3 seeds stand or move "
         "(full length; the forward distance would tell which)"
     )
     assert f"  adarl evaluate {run_dir}   # records forward distance" in lines
