@@ -235,7 +235,7 @@ def training_curves(
     curves: Mapping[str, Mapping[str, pd.DataFrame]],
     truncations: Mapping[str, Sequence[int]] | None = None,
     colours: Mapping[str, tuple] | None = None,
-    legend_loc: str = "best",
+    legend_loc: str = "figure",
     bounds: Mapping[str, tuple[float, float]] | None = None,
 ) -> Figure:
     """Return over training per task (one panel each), one line per method with its band over
@@ -243,8 +243,10 @@ def training_curves(
     markers on a curve of few evaluations), and the truncation steps as red dashed vertical
     lines.
 
-    `curves[task][method]` has columns `step, seed, return`; `legend_loc` is matplotlib's `loc`,
-    or "below" for a legend under each panel, clear of every curve (the figure grows to hold it).
+    `curves[task][method]` has columns `step, seed, return`; `legend_loc` "figure" (default)
+    for one legend under all the panels (a method has one colour in every panel), clear of every
+    point, curve and band; "below" for a legend under each panel (the figure grows to hold it);
+    else matplotlib's `loc` inside each panel (its "best" ignores the bands).
     """
     tasks = list(curves)
     colours = colours or method_colours([m for t in tasks for m in curves[t]])
@@ -269,10 +271,22 @@ def training_curves(
         ax.set_ylabel("return (nominal dynamics)")
         if legend_loc == "below":
             ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncols=2)
-        else:
+        elif legend_loc != "figure":
             ax.legend(loc=legend_loc)
     if legend_loc == "below":
         fig.set_figheight(fig.get_figheight() * 1.45)
+    if legend_loc == "figure":
+        entries = {}  # label -> handle, in panel order, each once
+        for ax in axes:
+            handles, labels = ax.get_legend_handles_labels()
+            for handle, label in zip(handles, labels):
+                entries.setdefault(label, handle)
+        fig.legend(
+            list(entries.values()),
+            list(entries),
+            loc="outside lower center",
+            ncols=min(len(entries), 6),
+        )
     return fig
 
 

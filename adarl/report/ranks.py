@@ -54,7 +54,7 @@ def training_section(runs: list[Run], folder: Path, colours) -> Section:
     text = (
         "Return over training (source: " + "; ".join(sorted(sources)) + "), mean over seeds with a "
         f"{band}; markers where a curve has at most {figures.FEW_POINTS} points; red dashed lines "
-        "mark the steps at which rank-adaptive runs truncated.\n"
+        "mark the steps at which rank-adaptive runs truncated; the legend is under the panels.\n"
     )
     return Section("Training curves", text, files)
 

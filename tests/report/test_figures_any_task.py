@@ -257,6 +257,35 @@ def test_the_training_band_stays_within_the_returns_the_task_can_give(tmp_path, 
     assert "0 to 200" in section.text
 
 
+@pytest.mark.parametrize("n", SEEDS)
+@pytest.mark.parametrize("evaluations", [1, 2, 5])
+def test_the_training_legend_covers_no_point_line_or_band(tmp_path, drawn, n, evaluations):
+    runs = bob_runs(
+        tmp_path,
+        SEEDS[n],
+        n_evals=evaluations,
+        eval_returns=lambda step, s, e: float(LIMIT if s % 2 else 20 + step / 100),
+    )
+    ranks.training_section(runs, tmp_path / "report", None)
+    ((_, fig),) = drawn
+    FigureCanvasAgg(fig).draw()
+    (legend,) = legends(fig)
+    box = legend.get_window_extent()
+    for ax in (ax for ax in fig.axes if ax.get_visible()):
+        for line in ax.get_lines():
+            points = ax.transData.transform(np.column_stack([line.get_xdata(), line.get_ydata()]))
+            if line.get_label() == "adarl":
+                radius = line.get_markersize() * fig.dpi / 72 / 2
+                assert not any(
+                    box.overlaps(Bbox.from_extents(x - radius, y - radius, x + radius, y + radius))
+                    for x, y in points
+                )
+            assert not ax.transData.transform_path(line.get_path()).intersects_bbox(box, False)
+        for band in ax.collections:
+            for path in band.get_paths():
+                assert not ax.transData.transform_path(path).intersects_bbox(box, filled=True)
+
+
 # ----------------------------------------------------------------------------- ranks
 def test_the_rank_figure_shows_the_initial_rank_every_cut_and_the_last_level(tmp_path, drawn):
     """The first cut (step 2,450) comes before the first log row (2,500), the last (7,450) after
