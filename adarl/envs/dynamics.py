@@ -11,7 +11,9 @@ others are constants. Modes by name (see `parse_dynamics`):
 
 Any mode but `default` takes overrides after a colon: ``paper:mass_scale=1.2``. A task's optional
 parameters (`TaskSpec.optional_params`: body masses, floor friction) are part of a schedule only
-when it sets them.
+when it sets them. On a task outside the paper's four, a spec that gives a range
+(``uniform:body:bob.mass=0.2..1``) varies only the ranges it gives: the generic schedule's
+mass_scale and friction_scale stay at 1 unless named (`DynamicsSchedule.inherited`).
 """
 
 from __future__ import annotations
@@ -46,6 +48,11 @@ class DynamicsSchedule:
     constants: Mapping[str, float] = field(default_factory=dict)
     sinusoids: Mapping[str, Sinusoid] = field(default_factory=dict)
     mode: str = "sinusoid"
+    #: sinusoids the base schedule brought without the user naming them: on a task outside the
+    #: paper's four, the generic schedule's (mass_scale, friction_scale). A range given to
+    #: `with_overrides` drops those it does not name (they go back to their defaults), so that a
+    #: spec with ranges varies what it names and nothing else.
+    inherited: tuple[str, ...] = field(default=(), compare=False)
 
     def __post_init__(self):
         spec = get_task(self.task)
@@ -85,6 +92,9 @@ class DynamicsSchedule:
             self, "sinusoids", {p: self.sinusoids[p] for p in order if p in self.sinusoids}
         )
         object.__setattr__(self, "_order", order)
+        object.__setattr__(
+            self, "inherited", tuple(p for p in self.inherited if p in self.sinusoids)
+        )
 
     @property
     def varies(self) -> bool:
@@ -143,7 +153,9 @@ class DynamicsSchedule:
         """A copy with `values` on top: a number fixes a parameter (its sinusoid dropped), a
         range `"LOW..HIGH"` (or `"LOW..HIGH@F"`) makes it vary over [LOW, HIGH]: a sinusoid of
         centre (LOW+HIGH)/2, amplitude (HIGH-LOW)/2 and frequency F (default: the schedule's, or
-        0.5) in `paper`/`ompo`, a uniform draw in `uniform`. The name records them."""
+        0.5) in `paper`/`ompo`, a uniform draw in `uniform`. The name records them. Where
+        `values` hold a range, the `inherited` sinusoids they do not name are dropped (back to
+        their defaults): the schedule varies what is named and nothing else."""
         if not values:
             return self
         if self.mode == "default":
@@ -160,12 +172,15 @@ class DynamicsSchedule:
         suffix = ",".join(
             f"{k}={fixed[k]!r}" if k in fixed else f"{k}={values[k].strip()}" for k in values
         )
+        dropped = {p for p in self.inherited if p not in values} if varying else set()
+        kept = {p: s for p, s in self.sinusoids.items() if p not in values and p not in dropped}
         return DynamicsSchedule(
             task=spec,
             name=f"{self.name}{',' if ':' in self.name else ':'}{suffix}",
             constants={**{p: c for p, c in self.constants.items() if p not in varying}, **fixed},
-            sinusoids={**{p: s for p, s in self.sinusoids.items() if p not in values}, **varying},
+            sinusoids={**kept, **varying},
             mode=self.mode,
+            inherited=() if varying else tuple(p for p in self.inherited if p not in values),
         )
 
     def _range(self, spec, name: str, text: str) -> Sinusoid:
@@ -212,13 +227,19 @@ def parse_dynamics(text: str | DynamicsSchedule, task: str) -> DynamicsSchedule:
     if kind == "default":
         return DynamicsSchedule(spec, name="default", mode="default")
     paper = spec.schedules["paper"]
+    # a task outside the paper's four: its schedule is the generic one, which a range replaces
+    inherited = () if spec.paper else tuple(paper)
     base = {
-        "paper": DynamicsSchedule(spec, "paper", sinusoids=paper),
-        "ompo": DynamicsSchedule(spec, "ompo", sinusoids=spec.schedules["ompo"]),
+        "paper": DynamicsSchedule(spec, "paper", sinusoids=paper, inherited=inherited),
+        "ompo": DynamicsSchedule(
+            spec, "ompo", sinusoids=spec.schedules["ompo"], inherited=inherited
+        ),
         "nominal": DynamicsSchedule(
             spec, "nominal", constants={p: s.center for p, s in paper.items()}
         ),
-        "uniform": DynamicsSchedule(spec, "uniform", sinusoids=paper, mode="uniform"),
+        "uniform": DynamicsSchedule(
+            spec, "uniform", sinusoids=paper, mode="uniform", inherited=inherited
+        ),
         "fixed": DynamicsSchedule(spec, "fixed"),
     }[kind]
     return base.with_overrides(**values)
@@ -256,8 +277,12 @@ def xml_path(spec) -> str:
 
 
 def _frequency(schedule: DynamicsSchedule) -> float:
-    """The frequency a range takes by default: the schedule's first sinusoid's, else 0.5."""
-    first = next(iter(schedule.sinusoids.values()), None)
+    """The frequency a range takes by default: the schedule's first sinusoid's, else 0.5 (on a
+    task outside the paper's four: its generic schedule's, whichever sinusoids a range dropped)."""
+    if not schedule.spec.paper:
+        first = next(iter(schedule.spec.schedules.get("paper", {}).values()), None)
+    else:
+        first = next(iter(schedule.sinusoids.values()), None)
     return first.frequency if first is not None else 0.5
 
 

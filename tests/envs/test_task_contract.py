@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import user_env
 
-from adarl.envs import get_task, make
+from adarl.envs import get_task, make, parse_dynamics
 from adarl.envs.contract import Task
 from adarl.errors import UsageError
 
@@ -31,7 +31,7 @@ def kinds(xml):
         "user-xml": (
             user_env.ENV_ID,
             {"dynamics": "uniform:geom:floor.friction=0.3..1.5", "env_kwargs": f"xml_file={xml}"},
-            "mass_scale",
+            "geom:floor.friction",
         ),
         "plain": ("Pendulum-v1", {"dynamics": "default"}, None),
     }
@@ -187,3 +187,51 @@ def test_a_plain_env_without_a_state_array_refuses_set_state():
     state["uncapturable"] = "MyEnv keeps its state outside a `state` array"
     with pytest.raises(UsageError, match="cannot resume this run exactly.*MyEnv"):
         env.set_state(state)
+
+
+def _episodes(task, dynamics, n=6, **kwargs):
+    """The parameters of `n` episodes of `make(task, dynamics)`, as the env reports them."""
+    env = make(task, dynamics, seed=4, **kwargs)
+    seen = [dict(env.reset()[1]["dynamics"]) for _ in range(n)]
+    env.close()
+    return seen
+
+
+def _varied(episodes) -> set[str]:
+    return {p for p in episodes[0] if len({round(e[p], 12) for e in episodes}) > 1}
+
+
+def test_a_range_varies_what_it_names_and_nothing_else(xml):
+    """Issue 62: on a task outside the paper's four, a spec that gives a range varies only the
+    ranges it gives; the generic scales stay at 1 unless named. Plain `uniform` and `paper`
+    (no items) are the generic schedule, as before, and a value alone keeps it."""
+    user = {"env_kwargs": f"xml_file={xml}"}
+    named = _episodes(user_env.ENV_ID, "uniform:body:ball.mass=0.5..2", **user)
+    assert _varied(named) == {"body:ball.mass"}
+    assert all(e["mass_scale"] == 1.0 and e["friction_scale"] == 1.0 for e in named)
+    assert all(0.5 <= e["body:ball.mass"] <= 2 for e in named)
+    generic = _episodes(user_env.ENV_ID, "paper:mass_scale=0.5..1.5", **user)
+    assert _varied(generic) == {"mass_scale"}
+    # naming a generic scale with the range: both vary, the other scale stays at 1
+    both = _episodes(
+        user_env.ENV_ID, "uniform:friction_scale=0.9..1.1,body:ball.mass=0.5..2", **user
+    )
+    assert _varied(both) == {"friction_scale", "body:ball.mass"}
+    # no range given: the generic schedule, mass_scale and friction_scale in [0.8, 1.2]
+    for spec in ("uniform", "paper", "ompo", "uniform:gravity=5", "paper:body:ball.mass=3"):
+        episodes = _episodes(user_env.ENV_ID, spec, **user)
+        assert _varied(episodes) == {"mass_scale", "friction_scale"}, spec
+        assert all(0.8 <= e["mass_scale"] <= 1.2 for e in episodes)
+    # keyword overrides follow the same rule, and the name parses back to the same schedule
+    kw = _episodes("HalfCheetah-v5", "uniform", **{"body:torso.mass": "4..9"})
+    assert _varied(kw) == {"body:torso.mass"}
+    task = get_task("HalfCheetah-v5")
+    chained = parse_dynamics("uniform:mass_scale=1.1", task).with_overrides(
+        **{"body:torso.mass": "4..9"}
+    )
+    assert parse_dynamics(chained.name, task) == chained and not chained.sinusoids.keys() - {
+        "body:torso.mass"
+    }
+    # the paper's four tasks keep their schedules under a range: the paper's parameters vary too
+    hopper = _episodes("hopper", "uniform:body:torso.mass=3..5")
+    assert _varied(hopper) == {"torso_length", "foot_length", "body:torso.mass"}
