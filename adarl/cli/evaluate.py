@@ -2,10 +2,10 @@
 nominal, fixed or swept dynamics, and store them as `RUN_DIR/evaluations/<name>.csv`.
 
     adarl evaluate runs/hopper-adarl                                  # nominal, 10 episodes
-    adarl evaluate runs/hopper-adarl --sweep torso_length=0.2:0.6:9 --hold foot_length=0.39
+    adarl evaluate runs/hopper-adarl --sweep torso_length=0.2..0.6:9 --hold foot_length=0.39
     adarl evaluate sweep-out/ --dynamics fixed:torso_length=0.5 --episodes 20
     adarl evaluate runs/ --suite m2td3-3d                             # a named robustness suite
-    adarl evaluate runs/halfcheetah --sweep body:torso.mass=4:9:6     # an element of any model
+    adarl evaluate runs/halfcheetah --sweep body:torso.mass=4..9:6    # an element of any model
 
 See docs/evaluation.md.
 """
@@ -32,15 +32,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--dynamics",
         default="nominal",
         help="base dynamics: nominal (default), default, paper, fixed:P=V,…, or "
-        "sweep:P=LO:HI:N,Q=V (sweep P, hold Q)",
+        "sweep:P=LO..HI[:N],Q=V (sweep P, hold Q)",
     )
     parser.add_argument(
-        "--sweep", action="append", default=[], metavar="P=LO:HI:N",
-        help="sweep parameter P over N evenly spaced values (or P=V1,V2,…); repeat for a grid. "
+        "--sweep", action="append", default=[], metavar="P=LO..HI[:N]",
+        help="sweep parameter P over N evenly spaced values from LO to HI (default N 9; "
+        "P=LO:HI:N is the same, P=V1,V2,… lists them); repeat for a grid. "
         "P: a task parameter (adarl tasks TASK) or KIND:NAME.ATTR[i], e.g. body:torso.mass",
     )  # fmt: skip
     parser.add_argument(
-        "--hold", action="append", default=[], metavar="P=V", help="hold parameter P at V"
+        "--hold",
+        action="append",
+        default=[],
+        metavar="P=V",
+        help="hold parameter P at V (one value; a range is --sweep's)",
     )
     parser.add_argument(
         "--suite", default=None, metavar="NAME",

@@ -165,6 +165,7 @@ class DynamicsSchedule:
             _check_name(spec, name)
         fixed, varying = {}, {}
         for k, v in values.items():
+            _check_not_a_grid(k, v, self.name)
             if isinstance(v, str) and ".." in v:
                 varying[k] = self._range(spec, k, v)
             else:
@@ -245,6 +246,20 @@ def parse_dynamics(text: str | DynamicsSchedule, task: str) -> DynamicsSchedule:
     return base.with_overrides(**values)
 
 
+def _check_not_a_grid(name: str, value, text: str) -> None:
+    """A one-line UsageError for a sweep's `LO:HI:N` (or `LO..HI:N`) given to a training
+    schedule, showing the range form it takes (one range grammar: docs/envs.md)."""
+    if not isinstance(value, str) or ":" not in value:
+        return
+    bounds = value.replace("..", ":").split(":")
+    example = f"{bounds[0].strip()}..{bounds[1].strip()}" if len(bounds) >= 2 else "LOW..HIGH"
+    raise UsageError(
+        f"bad value {value.strip()!r} for {name} in dynamics {text!r}; allowed: {name}=VALUE, "
+        f"or {name}=LOW..HIGH[@FREQUENCY] to vary it by episode (e.g. {name}={example}); "
+        "points LO..HI:N are for adarl evaluate --sweep"
+    )
+
+
 def _default_takes_no_values(what: str) -> UsageError:
     return UsageError(
         f"bad dynamics {what!r}: 'default' keeps Gymnasium's model untouched and takes no values; "
@@ -316,5 +331,6 @@ def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
             raise UsageError(
                 f"parameter {name!r} given twice in dynamics {text!r}; allowed: once each"
             )
+        _check_not_a_grid(name, value, text)
         values[name] = value if ".." in value else check_given(name, value, _default(spec, name))
     return values

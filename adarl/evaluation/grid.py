@@ -1,5 +1,9 @@
-"""Dynamics grids for evaluation sweeps: parsing `--sweep P=lo:hi:n`, `--hold P=v` and
+"""Dynamics grids for evaluation sweeps: parsing `--sweep P=LO..HI[:N]`, `--hold P=v` and
 `--dynamics sweep:…`, and naming the grid's points and output files.
+
+One range grammar across adarl (issue 62): a range is `LO..HI`, as `--dynamics uniform:P=LO..HI`
+trains over it; a sweep samples it at N evenly spaced points, `P=LO..HI:N` (`P=LO..HI` alone:
+`DEFAULT_POINTS`); `P=LO:HI:N` is the same sweep in the older spelling, still read.
 
 `P` is a named parameter (`torso_length`, `mass_scale`) or an addressed one, `KIND:NAME.ATTR[i]`
 (`body:torso.mass`, `geom:floor.friction[0]`: adarl.envs.elements), whose own colon is why a
@@ -33,6 +37,16 @@ MAX_EPISODES = 10_000_000
 #: row, 3.3 kB for Hopper's 10 columns (tracemalloc), rounded up.
 EPISODE_BYTES = 4096
 SPLIT = "evaluate fewer points, episodes, seeds or runs per command"
+#: Points of a `--sweep P=LO..HI` that gives no count (the training summary's suggestion too).
+DEFAULT_POINTS = 9
+
+
+def sweep_forms(name: str = "P") -> str:
+    """The forms `--sweep` takes, for its error messages."""
+    return (
+        f"allowed: {name}=LO..HI[:N] (N evenly spaced points, both ends included, default "
+        f"{DEFAULT_POINTS}), {name}=LO:HI:N (the same), {name}=V1,V2,… or {name}=V"
+    )
 
 
 def check_episodes(count: int, what: str) -> None:
@@ -54,13 +68,14 @@ class Axis:
     text: str  # how the user wrote it, e.g. "torso_length=0.2:0.6:9"
 
 
-def _number(text: str, what: str) -> float:
+def _number(text: str, what: str, allowed: str = "") -> float:
+    allowed = f"; {allowed}" if allowed else ""
     try:
         value = float(text)
     except ValueError:
-        raise UsageError(f"{what}: {text!r} is not a number") from None
+        raise UsageError(f"{what}: {text.strip()!r} is not a number{allowed}") from None
     if not math.isfinite(value):
-        raise UsageError(f"{what}: {text!r} is not a finite number")
+        raise UsageError(f"{what}: {text.strip()!r} is not a finite number{allowed}")
     return value
 
 
@@ -75,7 +90,8 @@ def _split_assignment(text: str, flag: str) -> tuple[str, str]:
     name, sep, rhs = text.rpartition("=")
     name = name.strip()
     if not sep or not rhs.strip() or not name:
-        raise UsageError(f"{flag} {text!r}: expected PARAM=VALUE")
+        forms = "P=LO..HI[:N], P=V1,V2,… or P=V" if flag == "--sweep" else "P=V"
+        raise UsageError(f"{flag} {text!r}: expected PARAM=VALUE; allowed: {forms}")
     check_name(name, f"{flag} {text!r}")
     return name, rhs.strip()
 
@@ -115,61 +131,85 @@ def parameter_key(name: str):
 def parse_axis(text: str, episodes: int = 1) -> Axis:
     """Parse one `--sweep` value.
 
-    Forms: `P=lo:hi:n` (n evenly spaced values from lo to hi, both included, as numpy.linspace),
-    `P=v1,v2,…` (explicit values) or `P=v` (a single value). n must be a positive integer;
-    n = 0 or an empty list is an empty grid and raises `UsageError`, and so does an n whose
-    points at `episodes` each are more than an evaluation may run (`check_episodes`), before
-    any value is computed.
+    Forms: `P=LO..HI:N` (N evenly spaced values from LO to HI, both included, as
+    numpy.linspace), `P=LO..HI` (`DEFAULT_POINTS` of them), `P=LO:HI:N` (the older spelling of
+    the first), `P=v1,v2,…` (explicit values) or `P=v` (a single value). N must be a positive
+    integer; n = 0 or an empty list is an empty grid and raises `UsageError`, and so does an n
+    whose points at `episodes` each are more than an evaluation may run (`check_episodes`),
+    before any value is computed. Every error names the forms.
     """
     name, rhs = _split_assignment(text, "--sweep")
     what = f"--sweep {text!r}"
-    if ":" in rhs:
+    forms = sweep_forms(name)
+    if "@" in rhs:
+        raise UsageError(
+            f"{what}: @FREQUENCY is for training schedules (--dynamics paper:P=LO..HI@F); {forms}"
+        )
+    if ".." in rhs:
+        span, colon, count = rhs.partition(":")
+        bounds = span.split("..")
+        if len(bounds) != 2 or ":" in count:
+            raise UsageError(f"{what}: expected {name}=LO..HI[:N], e.g. {name}=0.2..0.6:9; {forms}")
+        lo, hi = (_number(b, what, forms) for b in bounds)
+        n_text = count if colon else str(DEFAULT_POINTS)
+    elif ":" in rhs:
         parts = rhs.split(":")
         if len(parts) != 3:
-            raise UsageError(f"{what}: expected {name}=LO:HI:N, e.g. {name}=0.2:0.6:9")
-        lo, hi = _number(parts[0], what), _number(parts[1], what)
-        try:
-            n = int(parts[2])
-        except ValueError:
-            raise UsageError(
-                f"{what}: the number of points {parts[2]!r} is not an integer"
-            ) from None
-        if n < 0:
-            raise UsageError(f"{what}: the number of points must be ≥ 1, got {n}")
-        if n == 0:
-            raise UsageError(f"{what}: empty grid (0 points); use N ≥ 1")
-        if n == 1 and lo != hi:
-            raise UsageError(f"{what}: one point cannot span {lo:g}..{hi:g}; use N ≥ 2 or LO = HI")
-        check_episodes(n * episodes, f"{what}: {n:,} points x {episodes} episodes")
-        values = tuple(_clean(v) for v in np.linspace(lo, hi, n))
+            raise UsageError(f"{what}: expected {name}=LO..HI[:N], e.g. {name}=0.2..0.6:9; {forms}")
+        lo, hi = _number(parts[0], what, forms), _number(parts[1], what, forms)
+        n_text = parts[2]
     else:
         items = [item.strip() for item in rhs.split(",")]
         if not any(items):
-            raise UsageError(f"{what}: empty grid (no values)")
-        values = tuple(_clean(_number(item, what)) for item in items if item)
+            raise UsageError(f"{what}: empty grid (no values); {forms}")
+        values = tuple(_clean(_number(item, what, forms)) for item in items if item)
+        if len(set(values)) != len(values):
+            raise UsageError(f"{what}: repeated values {list(values)}")
+        return Axis(name=name, values=values, text=text)
+    try:
+        n = int(n_text)
+    except ValueError:
+        raise UsageError(
+            f"{what}: the number of points {n_text.strip()!r} is not an integer; {forms}"
+        ) from None
+    if n < 0:
+        raise UsageError(f"{what}: the number of points must be ≥ 1, got {n}; {forms}")
+    if n == 0:
+        raise UsageError(f"{what}: empty grid (0 points); use N ≥ 1")
+    if n == 1 and lo != hi:
+        raise UsageError(f"{what}: one point cannot span {lo:g}..{hi:g}; use N ≥ 2 or LO = HI")
+    check_episodes(n * episodes, f"{what}: {n:,} points x {episodes} episodes")
+    values = tuple(_clean(v) for v in np.linspace(lo, hi, n))
     if len(set(values)) != len(values):
         raise UsageError(f"{what}: repeated values {list(values)}")
     return Axis(name=name, values=values, text=text)
 
 
 def parse_hold(text: str) -> tuple[str, float]:
-    """Parse one `--hold P=v` value into `(P, v)`."""
+    """Parse one `--hold P=v` value into `(P, v)`; a range is a one-line error pointing at
+    `--sweep`."""
     name, rhs = _split_assignment(text, "--hold")
-    return name, _clean(_number(rhs, f"--hold {text!r}"))
+    if ".." in rhs or ":" in rhs:
+        raise UsageError(
+            f"--hold {text!r}: --hold takes one value, {name}=V; to vary {name} use "
+            f"--sweep {name}={rhs}"
+        )
+    return name, _clean(_number(rhs, f"--hold {text!r}", f"allowed: {name}=V, one number"))
 
 
 def split_dynamics(spec: str, episodes: int = 1) -> tuple[str, list[Axis], list[tuple[str, float]]]:
     """Split a `--dynamics` value into a base spec, swept axes and held values.
 
-    `sweep:torso_length=0.2:0.6:9,foot_length=0.39` sweeps torso_length over the nominal dynamics
-    and holds foot_length (an item with LO:HI:N is swept, a single value is held). Any other spec
+    `sweep:torso_length=0.2..0.6:9,foot_length=0.39` sweeps torso_length over the nominal
+    dynamics and holds foot_length (an item with a range, LO..HI[:N] or LO:HI:N, is swept, a
+    single value is held). Any other spec
     (`nominal`, `default`, `paper`, `fixed:…`) is returned as the base with no axes.
     """
     spec = spec.strip()
     if not spec.startswith("sweep:"):
         if not spec:
             raise UsageError(
-                "--dynamics is empty; allowed: nominal, default, fixed:P=V,…, sweep:P=LO:HI:N,…"
+                "--dynamics is empty; allowed: nominal, default, fixed:P=V,…, sweep:P=LO..HI[:N],…"
             )
         return spec, [], []
     body = spec[len("sweep:") :]
@@ -177,12 +217,13 @@ def split_dynamics(spec: str, episodes: int = 1) -> tuple[str, list[Axis], list[
     for item in (part.strip() for part in body.split(",")):
         if not item:
             continue
-        if ":" in item.rpartition("=")[2]:
+        value = item.rpartition("=")[2]
+        if ":" in value or ".." in value:
             axes.append(parse_axis(item, episodes))
         else:
             holds.append(parse_hold(item))
     if not axes:
-        raise UsageError(f"--dynamics {spec!r}: empty grid (no PARAM=LO:HI:N item to sweep)")
+        raise UsageError(f"--dynamics {spec!r}: empty grid (no P=LO..HI[:N] item to sweep)")
     return "nominal", axes, holds
 
 

@@ -25,17 +25,32 @@ def duration(seconds: float) -> str:
     return f"{minutes}m{secs:02d}s" if minutes else f"{secs}s"
 
 
-def sweep_example(task: str) -> str:
-    """`--sweep P=LO:HI:9` over the training range of the first parameter `paper` dynamics vary;
-    empty if the task is unknown."""
-    from adarl.envs import get_task
+#: The most `adarl evaluate --sweep` lines the summary suggests (one per varied parameter).
+MAX_SWEEPS = 3
+
+
+def sweep_examples(config: dict) -> list[str]:
+    """`--sweep P=LO..HI:9`, one per parameter the run's own dynamics varied, over its training
+    range (a run that varied nothing: the first parameter of its task's `paper` schedule); empty
+    if the task cannot be read (a run of a task this version does not know)."""
+    from adarl.envs import parse_dynamics
+    from adarl.envs.tasks import task_of
+    from adarl.evaluation.grid import DEFAULT_POINTS
 
     try:
-        schedule = get_task(task).schedules["paper"]
+        task = task_of(config)
+        try:
+            varied = dict(parse_dynamics(str(config.get("dynamics", "paper")), task).sinusoids)
+        except Exception:  # noqa: BLE001 - a spec this version reads otherwise: the task's own
+            varied = {}
+        if not varied:
+            varied = dict(list(task.schedules.get("paper", {}).items())[:1])
     except Exception:  # noqa: BLE001 - a run of a task this version does not know
-        return ""
-    name, sinusoid = next(iter(schedule.items()))
-    return f"--sweep {name}={sinusoid.low:.4g}:{sinusoid.high:.4g}:9"
+        return []
+    return [
+        f"--sweep {name}={s.low:.4g}..{s.high:.4g}:{DEFAULT_POINTS}"
+        for name, s in list(varied.items())[:MAX_SWEEPS]
+    ]
 
 
 LAST_K = 5  # the summary's score: the mean of the last 5 evaluations, as `adarl report`'s default
@@ -207,13 +222,13 @@ def training_summary(
     lines.append(f"files: {run.path}/ (config.yaml, eval.csv, train.csv, checkpoints/, tb/)")
     if report_dir is not None:
         lines.append(f"report: {report_dir}/index.md")
-    sweep = sweep_example(run.task)
+    sweeps = sweep_examples(run.config)
     no_distance = final_behaviour.empty or final_behaviour["distance"].isna().any()
     lines += [
         "next:",
         *([] if report_dir else [f"  adarl report {path} --out {path}/report"]),
         *([f"  adarl evaluate {path}   # records forward distance"] if no_distance else []),
-        *([f"  adarl evaluate {path} {sweep}"] if sweep else []),
+        *[f"  adarl evaluate {path} {sweep}" for sweep in sweeps],
         f"  adarl play {path} --seed {run.seeds[0]} --video {path}/seed{run.seeds[0]}.mp4",
         f"  tensorboard --logdir {path}/tb",
     ]

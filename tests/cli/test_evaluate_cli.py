@@ -85,6 +85,9 @@ def test_out_and_the_dynamics_sweep_form(tmp_path):
         (["--dynamics", "sideways"], "unknown dynamics"),
         (["--episodes", "0"], "--episodes must be ≥ 1"),
         (["--checkpoint", "5"], "no checkpoint at step 5"),
+        # one range grammar (issue 62): the error shows the forms --sweep and --hold take
+        (["--sweep", "torso_length=0.2..x"], "allowed: torso_length=LO..HI[:N]"),
+        (["--hold", "foot_length=0.2..0.4"], "use --sweep foot_length=0.2..0.4"),
     ],
 )
 def test_bad_requests_exit_2_and_write_nothing(tmp_path, capsys, extra, fragment):

@@ -139,6 +139,9 @@ def test_a_fromto_capsule_stretches_about_its_centre():
         ("fixed:torso_length=0.3", "unknown HalfCheetah-v5 parameter 'torso_length'"),
         ("nominal:mass_scale=0.8..1.2", "allowed: a range in paper, ompo or uniform"),
         ("uniform:mass_scale=1.2..0.8", "bad range"),
+        # a sweep's grid given to training: the form it takes (issue 62)
+        ("uniform:mass_scale=0.8:1.2:9", "allowed: mass_scale=VALUE, or mass_scale=LOW..HIGH"),
+        ("uniform:body:torso.mass=4..9:5", "(e.g. body:torso.mass=4..9)"),
     ],
 )
 def test_bad_parameters_are_one_line_errors(dynamics, message):

@@ -164,3 +164,43 @@ def test_addressed_names_in_file_names():
     )
     label = grid.point_label("fixed", {"body:torso.mass": 4.0, "geom:floor.friction[1]": 1.0})
     assert label == "fixed:body:torso.mass=4,geom:floor.friction[1]=1"
+
+
+def test_one_range_grammar_lo_dot_dot_hi_with_an_optional_point_count():
+    """Issue 62: a range is LO..HI everywhere; a sweep over it takes N points (LO..HI:N, default
+    9); LO:HI:N is the same sweep in the older spelling."""
+    nine = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+    assert grid.parse_axis("body:bob.mass=0.2..1.0").values == nine
+    assert grid.parse_axis("body:bob.mass=0.2..1.0:9").values == nine
+    assert grid.parse_axis("body:bob.mass=0.2:1.0:9").values == nine
+    assert grid.parse_axis("wind=-1..1:3").values == (-1.0, 0.0, 1.0)
+    assert grid.DEFAULT_POINTS == 9
+    base, axes, holds = grid.split_dynamics("sweep:torso_length=0.2..0.6:3,foot_length=0.39")
+    assert [(a.name, a.values) for a in axes] == [("torso_length", (0.2, 0.4, 0.6))]
+    assert holds == [("foot_length", 0.39)]
+    # the same grid, however it is written, is the same evaluation (file name)
+    assert grid.evaluation_name("nominal", [grid.parse_axis("torso_length=0.2..0.6:3")]) == (
+        grid.evaluation_name("nominal", [grid.parse_axis("torso_length=0.2:0.6:3")])
+    )
+
+
+@pytest.mark.parametrize(
+    "parse, text, fragment",
+    [
+        (grid.parse_axis, "body:bob.mass=a..1.0", "'a' is not a number"),
+        (grid.parse_axis, "body:bob.mass=0.2..1.0:x", "not an integer"),
+        (grid.parse_axis, "body:bob.mass=0.2..1.0@0.3", "@FREQUENCY is for training"),
+        (grid.parse_axis, "body:bob.mass=0.2-1.0", "'0.2-1.0' is not a number"),
+        (grid.parse_axis, "body:bob.mass=0.2:1.0", "LO..HI[:N]"),
+        (grid.parse_axis, "body:bob.mass=1.0..0.2..3", "LO..HI[:N]"),
+        (grid.parse_hold, "body:bob.mass=0.2..1.0", "--sweep body:bob.mass=0.2..1.0"),
+        (grid.parse_hold, "body:bob.mass=heavy", "allowed: body:bob.mass=V"),
+    ],
+)
+def test_range_errors_show_the_form_wanted(parse, text, fragment):
+    with pytest.raises(UsageError) as err:
+        parse(text)
+    message = str(err.value)
+    assert fragment in message and "\n" not in message
+    if parse is grid.parse_axis:  # every --sweep error shows the forms it takes
+        assert "body:bob.mass=LO..HI[:N]" in message

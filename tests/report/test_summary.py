@@ -2,9 +2,10 @@
 
 import numpy as np
 import pandas as pd
+import user_env
 from synthetic_runs import write_run
 
-from adarl.report.summary import behaviour_line, duration, sweep_example, training_summary
+from adarl.report.summary import behaviour_line, duration, sweep_examples, training_summary
 from adarl.results import collect
 from adarl.results.runs import load_run
 
@@ -40,7 +41,8 @@ def test_summary_of_an_adarl_run_has_returns_ranks_files_and_next_commands(tmp_p
     assert f"{ranks['layer'].iloc[0]} {actor.mean():.1f}" in text
     assert f"files: {run_dir}/" in text
     assert f"  adarl report {run_dir} --out {run_dir}/report" in lines
-    assert f"  adarl evaluate {run_dir} {sweep_example('hopper')}" in lines
+    for sweep in sweep_examples({"task": "hopper", "dynamics": "paper"}):
+        assert f"  adarl evaluate {run_dir} {sweep}" in lines
     assert f"  tensorboard --logdir {run_dir}/tb" in lines
 
 
@@ -52,10 +54,37 @@ def test_summary_of_a_sac_run_with_a_report(tmp_path):
     assert f"--seed 4 --video {run_dir}/seed4.mp4" in text
 
 
-def test_sweep_example_spans_the_training_range():
-    assert sweep_example("hopper") == "--sweep torso_length=0.2:0.6:9"  # 0.4 + 0.2·sin(0.2·i)
-    assert sweep_example("ant") == "--sweep gravity=9.81:19.62:9"  # 14.715 + 4.905·sin(0.5·i)
-    assert sweep_example("no-such-task") == ""
+def test_sweep_examples_span_the_training_range():
+    assert sweep_examples({"task": "hopper", "dynamics": "paper"}) == [
+        "--sweep torso_length=0.2..0.6:9",  # 0.4 + 0.2·sin(0.2·i)
+        "--sweep foot_length=0.19..0.59:9",
+    ]
+    assert sweep_examples({"task": "ant", "dynamics": "uniform"})[0] == (
+        "--sweep gravity=9.81..19.62:9"  # 14.715 + 4.905·sin(0.5·i)
+    )
+    assert sweep_examples({"task": "no-such-task", "dynamics": "paper"}) == []
+
+
+def test_the_next_sweeps_are_the_runs_own_varied_parameters(tmp_path):
+    """Issue 62: the summary suggests sweeping what the run varied, over its training range (it
+    suggested mass_scale to a user who trained over a body's mass)."""
+    xml = user_env.write_xml(tmp_path)
+    config = {
+        "task": user_env.ENV_ID,
+        "env_module": "user_env",
+        "env_kwargs": f"xml_file={xml}",
+        "dynamics": "uniform:body:ball.mass=0.2..1,geom:floor.friction=0.3..1.5",
+    }
+    assert sweep_examples(config) == [
+        "--sweep body:ball.mass=0.2..1:9",
+        "--sweep geom:floor.friction=0.3..1.5:9",
+    ]
+    # a run that varied nothing: the task's own schedule (here the generic one)
+    assert sweep_examples({**config, "dynamics": "nominal"}) == ["--sweep mass_scale=0.8..1.2:9"]
+    run_dir = write_run(tmp_path, "r", seeds=(0,), dynamics="uniform:body:torso.mass=3..5")
+    lines = training_summary(run_dir, 1.0).splitlines()
+    assert f"  adarl evaluate {run_dir} --sweep body:torso.mass=3..5:9" in lines
+    assert not any("mass_scale" in line for line in lines)
 
 
 def test_summary_says_a_run_with_few_evaluations_and_a_falling_policy(tmp_path):
