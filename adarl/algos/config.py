@@ -9,9 +9,10 @@ field names are those of config.yaml (docs/run-format.md) and of the flags (`--t
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
-from adarl.envs.tasks import PHYSICS, VERSIONS
+from adarl.envs.tasks import PHYSICS, TASKS, VERSIONS
 from adarl.errors import EVAL_DYNAMICS_EMPTY, ON_DIVERGENCE, UsageError, check_choice, check_numbers
 
 
@@ -83,3 +84,18 @@ class RunConfig:
         if self.env_kwargs or self.env_module:  # a paper task's make() takes neither
             options |= {"env_kwargs": self.env_kwargs, "env_module": self.env_module}
         return options
+
+
+@dataclass(frozen=True)
+class BudgetRule:
+    """A config field that follows the step budget on a task outside the paper's four, where
+    neither a flag nor the preset sets it (`registry.resolve_config`; issue 62)."""
+
+    text: str  # the rule, as --help, the start line and the summary say it
+    value: Callable[[int], int]  # total_steps -> the field's value
+
+
+def follows_budget(task) -> bool:
+    """Do the budget rules apply to `task`: is it outside the paper's four (hopper, walker2d,
+    ant, humanoid, which keep the paper's settings)?"""
+    return str(task).strip().lower() not in TASKS

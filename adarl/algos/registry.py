@@ -24,6 +24,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from adarl.algos import rnac_config, sac_config
+from adarl.algos.config import BudgetRule, follows_budget
 from adarl.algos.flags import field_value, type_text
 from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import UsageError, check_choice
@@ -53,6 +54,9 @@ class Algorithm:
     default_preset: str
     # fields a config.yaml written before they existed is read with (their value back then)
     legacy_fields: Mapping[str, object] = field(default_factory=dict)
+    # fields that follow the step budget on a task outside the paper's four where neither a flag
+    # nor the preset sets them (`resolve_config`; issue 62)
+    budget_rules: Mapping[str, BudgetRule] = field(default_factory=dict)
     # fields it no longer has: runs that recorded another value evaluate, report and export,
     # but resume and fork only with the adarl that trained them (`check_resumable`)
     retired_fields: Mapping[str, Retired] = field(default_factory=dict)
@@ -138,6 +142,7 @@ ALGORITHMS: dict[str, Algorithm] = {
             default_preset="paper",
             legacy_fields={"lr_schedule": "restart"},
             retired_fields=SAC_RETIRED,
+            budget_rules=sac_config.budget_rules(name),
             **SAC_FAMILY_ROLES.get(name, {}),
         )
         for name, fields in SAC_FAMILY.items()
@@ -202,8 +207,10 @@ def resolve_config(
 ):
     """The validated config of `algo`: class defaults <- the algorithm's fields <- its per-task
     defaults <- `preset` (None: the algorithm's default preset) <- `flags` (field -> value, or
-    text as typed on a command line, parsed by the field's type). `check=False` skips the
-    validation (`--help` shows the defaults of an algorithm that needs a flag, as --rank)."""
+    text as typed on a command line, parsed by the field's type); on a task outside the paper's
+    four, the fields of `Algorithm.budget_rules` that neither the preset nor a flag sets follow
+    the resolved total_steps. `check=False` skips the validation (`--help` shows the defaults
+    of an algorithm that needs a flag, as --rank)."""
     entry = get(algo)
     cls = entry.config_class
     preset = preset or entry.default_preset
@@ -232,6 +239,10 @@ def resolve_config(
             values["max_episode_steps"] = limit
     values.update(entry.presets[preset])
     values.update(parsed)
+    if follows_budget(task):
+        for name, rule in entry.budget_rules.items():
+            if name not in parsed and name not in entry.presets[preset]:
+                values[name] = rule.value(int(values.get("total_steps", cls.total_steps)))
     if values.get("backend") == "device" and "device_solver" not in values:
         from adarl.device.tasks import default_solver  # 100,4 where it is C's physics
 

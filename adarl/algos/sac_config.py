@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from adarl.algos.config import RunConfig
+from adarl.algos.config import BudgetRule, RunConfig
 from adarl.errors import UsageError, check_choice
 from adarl.nets.choices import ACTIVATIONS, INITS, LR_SCHEDULES, RANK_RULES
 
@@ -48,7 +48,7 @@ ADARL_TASK_DEFAULTS: dict[str, dict] = {
     "ant": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
     "humanoid": {"total_steps": 5_000_000, "truncate_every": 1_000_000},
     # any other task (registry.OTHER_TASKS): the paper's budget/d_t of Ant and Humanoid, 5, on
-    # 1M steps: four cuts, 200k updates apart
+    # 1M steps: four cuts, 200k updates apart (BUDGET_RULES scale d_t with any other budget)
     "*": {"total_steps": 1_000_000, "truncate_every": 200_000},
 }
 
@@ -228,6 +228,27 @@ class SACConfig(RunConfig):
         from adarl.device.tasks import solver_caps
 
         solver_caps(self.device_solver)
+
+
+#: On a task outside the paper's four, AdaRL's d_t and every SAC-family run's random-action
+#: warm-up follow --total-steps where neither a flag nor the preset sets them (issue 62): d_t =
+#: total-steps / 5 gradient steps, four cuts in the budget (the paper's 5M steps / 10⁶ on Ant and
+#: Humanoid; claim 2's 100k / 20k), and the warm-up 5% of the budget, at most the paper's
+#: 10,000 (claim 2's 5k of 100k). At the default 1M steps they are 200,000 and 10,000, as before.
+#: The resolved values are config.yaml's: a resume reads them, never recomputes them.
+TRUNCATE_EVERY_RULE = BudgetRule("total-steps / 5", lambda total: max(total // 5, 1))
+START_STEPS_RULE = BudgetRule(
+    f"5% of total-steps, at most {SACConfig.start_steps:,}",
+    lambda total: min(total // 20, SACConfig.start_steps),
+)
+
+
+def budget_rules(algo: str) -> dict[str, BudgetRule]:
+    """The fields of a SAC-family `algo` that follow the budget on other tasks."""
+    rules = {"start_steps": START_STEPS_RULE}
+    if SAC_FAMILY.get(algo, {}).get("adapt_rank"):
+        rules["truncate_every"] = TRUNCATE_EVERY_RULE
+    return rules
 
 
 #: the most iterations `--device-solver` takes, each (MuJoCo's defaults: 100 and 50)

@@ -131,3 +131,64 @@ def rnac_learning_rate(config, step: int) -> float:
     if not config.lr_decay:
         return config.lr
     return config.lr * (1.0 - (step - config.rollout_steps) / config.total_steps)
+
+
+# ============================================================================ the budget, in words
+#: A warm-up of at least this share of the budget is "mostly random" (said plainly, issue 62).
+MOSTLY_RANDOM = 0.5
+
+
+def budget_words(config) -> tuple[list[str], list[str]]:
+    """What a run's budget gives, as `adarl train`'s start line and summary say it (issue 62):
+    (facts, warnings). Facts: AdaRL's cuts (how many, d_t, the steps they fall at) and the
+    random-action warm-up, each with the rule it follows where it follows one (a task outside
+    the paper's four, `registry.resolve_config`); an algorithm without them has none. Warnings,
+    one line each: a rank-adaptive budget with no cut, a budget that is mostly random warm-up."""
+    from adarl.algos import registry
+    from adarl.algos.config import follows_budget
+
+    entry = registry.ALGORITHMS.get(str(getattr(config, "algo", "")))
+    rules = dict(entry.budget_rules) if entry and follows_budget(config.task) else {}
+
+    def rule_of(name: str) -> str:
+        rule = rules.get(name)
+        value = getattr(config, name)
+        return f" = {rule.text}" if rule and rule.value(config.total_steps) == value else ""
+
+    facts, warnings = [], []
+    total = config.total_steps
+    if getattr(config, "adapt_rank", False):
+        steps = truncation_steps(config)
+        d_t = f"d_t{rule_of('truncate_every')}"
+        where = ", ".join(f"{s:,}" for s in steps[:6]) + (", …" if len(steps) > 6 else "")
+        if steps:
+            facts.append(
+                f"{len(steps)} cut{'s' if len(steps) != 1 else ''} of the rank, every "
+                f"{config.truncate_every:,} gradient steps ({d_t}), at step"
+                f"{'s' if len(steps) > 1 else ''} {where}"
+            )
+        else:
+            facts.append(f"no cut of the rank ({d_t}: {config.truncate_every:,} gradient steps)")
+            warnings.append(
+                f"no cut: this run makes {total_updates(config):,} gradient steps (updates "
+                f"begin at step {config.update_after:,} of {total:,}), fewer than d_t = "
+                f"{config.truncate_every:,}: the rank never adapts and AdaRL trains as SAC; "
+                "give a smaller --truncate-every or more --total-steps"
+            )
+    if hasattr(config, "start_steps"):
+        start = config.start_steps
+        facts.append(
+            f"random-action warm-up for the first {min(start, total):,} steps "
+            f"(start-steps{rule_of('start_steps')})"
+        )
+        if start >= total:
+            warnings.append(
+                f"all random: start-steps {start:,} ≥ total-steps {total:,}: every step takes "
+                "uniform random actions and the policy never acts; give a smaller --start-steps"
+            )
+        elif start >= MOSTLY_RANDOM * total:
+            warnings.append(
+                f"mostly random: the first {start:,} of {total:,} steps ({start / total:.0%}) take "
+                f"uniform random actions (start-steps); the policy acts in only {total - start:,}"
+            )
+    return facts, warnings

@@ -51,7 +51,12 @@ def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
         "  adarl train --fork runs/hopper-adarl-20261121-120000 --at first-truncation "
         "--apply-cuts false --out runs/hopper-control\n"
         "Every config field is a flag (--field-name VALUE); tuples take commas (--seeds 0,2,4 or "
-        "0-4).\nadarl train --algo ALGO --help lists ALGO's fields with its defaults."
+        "0-4).\nadarl train --algo ALGO --help lists ALGO's fields with its defaults.\n"
+        "On a task other than hopper, walker2d, ant and humanoid (whose settings are the "
+        "paper's), what\nneither a flag nor --preset sets follows --total-steps: d_t "
+        "(--truncate-every) = total-steps / 5\ngradient steps (four cuts) and the random-action "
+        "warm-up (--start-steps) = 5% of total-steps,\nat most 10,000. The run's start line and "
+        "summary say the values; config.yaml records them."
     )
     parser.add_argument(
         "--algo", default=None, help=", ".join(registry.ALGOS) + f" (default {DEFAULT_ALGO})"
@@ -136,12 +141,15 @@ def add_config_fields(parser: argparse.ArgumentParser, algo: str) -> None:
             continue
         meaning = meanings.get(f.name, "")
         default = _value_text(getattr(defaults, f.name))
+        rule = entry.budget_rules.get(f.name)
         per_task = [
             f"on {'other tasks' if task == registry.OTHER_TASKS else task}: "
             f"{_value_text(fields[f.name])}"
             for task, fields in entry.task_defaults.items()
-            if f.name in fields
+            if f.name in fields and not (rule and task == registry.OTHER_TASKS)
         ]
+        if rule:  # issue 62: the field follows --total-steps on other tasks
+            per_task.append(f"on other tasks: {rule.text}")
         default += f" ({'; '.join(per_task)})" if per_task else ""
         group.add_argument(
             _flag(f.name),

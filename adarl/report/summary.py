@@ -53,6 +53,21 @@ def sweep_examples(config: dict) -> list[str]:
     ]
 
 
+def budget_words(config: dict) -> tuple[list[str], list[str]]:
+    """What the run's budget gave (`schedule.budget_words`: AdaRL's cuts, the warm-up, the rules
+    they followed) and its warnings (no cut, mostly random), from its config.yaml; none for a
+    config that does not record the SAC family's schedule (`start_steps`) or does not read."""
+    if "start_steps" not in config:
+        return [], []
+    from adarl.algos import registry, schedule
+
+    try:
+        _, resolved = registry.config_from_record(dict(config), "config.yaml")
+    except Exception:  # noqa: BLE001 - a run this version reads otherwise: say nothing of it
+        return [], []
+    return schedule.budget_words(resolved)
+
+
 LAST_K = 5  # the summary's score: the mean of the last 5 evaluations, as `adarl report`'s default
 
 
@@ -195,9 +210,11 @@ def training_summary(
     run = load_run(run_dir)
     path = shlex.quote(str(run.path))
     steps = f"{run.total_steps:,}" if run.total_steps is not None else "?"
+    budget, warnings = budget_words(run.config)
     lines = [
         f"done: {run.label} on {run.task}, {len(run.seeds)} seed(s) x {steps} steps, "
-        f"wall time {duration(wall_seconds)}"
+        f"wall time {duration(wall_seconds)}",
+        *(f"warning: {w}" for w in warnings),
     ]
     recent, _ = collect.last_k_scores(run, LAST_K)
     if not recent.empty:
@@ -219,6 +236,8 @@ def training_summary(
             span = f" ({r.min():.0f}-{r.max():.0f})" if r.min() != r.max() else ""
             parts.append(f"{layer} {np.mean(r):.1f}{span}")
         lines.append("final ranks (mean over seeds): " + ", ".join(parts))
+    if budget:
+        lines.append("budget: " + "; ".join(budget))
     lines.append(f"files: {run.path}/ (config.yaml, eval.csv, train.csv, checkpoints/, tb/)")
     if report_dir is not None:
         lines.append(f"report: {report_dir}/index.md")

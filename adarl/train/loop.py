@@ -127,12 +127,38 @@ def train(
             loop = Loop(learner, run_dir, progress)
             learner.fresh()
             loop.open_logs(None)
+        announce(config, loop.learner.algo, loop.step)
         try:
             with StopSignals() as stop:
                 loop.run(stop)
         finally:
             loop.close()
     return run_dir
+
+
+def start_line(config, algo: str, step: int = 0) -> str:
+    """The line a run prints as it starts (or resumes from `step`): the algorithm, task, seeds
+    and budget, and what the budget gives (`schedule.budget_words`: AdaRL's cuts, the warm-up
+    and the rules they follow; issue 62)."""
+    from adarl.algos import schedule
+
+    seeds = len(config.seeds)
+    head = (
+        f"{'resume' if step else 'start'}: {algo} on {config.task}, {seeds} seed"
+        f"{'s' if seeds > 1 else ''} x {config.total_steps:,} steps"
+        + (f", from step {step:,}" if step else "")
+    )
+    return "; ".join([head, *schedule.budget_words(config)[0]])
+
+
+def announce(config, algo: str, step: int = 0) -> None:
+    """Print `start_line` (stdout) and the budget's warnings (stderr, `warning: ...`, one line
+    each: no cut, mostly random warm-up), after the run's checks and before its first step."""
+    from adarl.algos import schedule
+
+    print(start_line(config, algo, step), flush=True)
+    for warning in schedule.budget_words(config)[1]:
+        print(f"warning: {warning}", file=sys.stderr, flush=True)
 
 
 class StopSignals:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import sys
 import weakref
 
 import jax
@@ -139,12 +138,6 @@ class SACLearner(SACFamily):
         for i, env in enumerate(self.envs):
             o, _ = env.reset(seed=self.seeds[i])
             self.obs[i] = o
-        if self.config.adapt_rank and not self.truncation_steps:
-            print(
-                f"warning: total steps {self.config.total_steps} with truncate-every (d_t) "
-                f"{self.config.truncate_every} gives 0 truncations: the rank will not adapt",
-                file=sys.stderr,
-            )
 
     def set_lanes(
         self, state: dict, buffers: dict | None = None, lane_widths: list | None = None

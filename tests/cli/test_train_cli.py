@@ -194,6 +194,8 @@ def test_adarl_without_a_budget_uses_its_per_task_budget_and_truncates():
 
 
 def test_adarl_budget_without_truncations_warns_once(tmp_path, capsys):
+    """A budget with no cut, or mostly random warm-up, is said plainly at the start and again in
+    the summary (issue 62: one warning line above the progress bar was easy to miss)."""
     code = main(
         [
             "train",
@@ -207,12 +209,59 @@ def test_adarl_budget_without_truncations_warns_once(tmp_path, capsys):
         ]
     )
     assert code == 0
-    err = capsys.readouterr().err
-    warnings = [line for line in err.splitlines() if line.startswith("warning:")]
-    assert warnings == [
-        "warning: total steps 400 with truncate-every (d_t) 500 gives 0 truncations: "
-        "the rank will not adapt"
-    ]
+    captured = capsys.readouterr()
+    warnings = [line for line in captured.err.splitlines() if line.startswith("warning:")]
+    assert [w.split(":")[1].strip() for w in warnings] == ["no cut", "all random"]
+    assert "fewer than d_t = 500: the rank never adapts" in warnings[0]
+    assert "start-steps 500 ≥ total-steps 400" in warnings[1]
+    out = captured.out.splitlines()
+    assert out[0].startswith("start: adarl on hopper, 1 seed x 400 steps; no cut of the rank")
+    done = out.index(next(line for line in out if line.startswith("done:")))
+    assert out[done + 1 : done + 3] == warnings  # the summary says them again, under done:
+
+
+def test_on_other_tasks_d_t_and_the_warm_up_follow_the_budget():
+    """Issue 62: on a task outside the paper's four, d_t = total-steps / 5 (four cuts) and the
+    warm-up 5% of the budget (at most 10,000) where neither a flag nor the preset sets them."""
+    from adarl.algos import schedule
+
+    def budget(*argv):
+        config = config_for(*argv)
+        return config.total_steps, config.truncate_every, config.start_steps
+
+    cheetah = ("--task", "HalfCheetah-v5")
+    assert budget("--algo", "adarl", *cheetah, "--total-steps", "100000") == (
+        100_000,
+        20_000,
+        5_000,
+    )
+    assert (
+        schedule.n_truncations(config_for("--algo", "adarl", *cheetah, "--total-steps", "100000"))
+        == 4
+    )
+    assert budget("--algo", "adarl", *cheetah) == (1_000_000, 200_000, 10_000)  # as before
+    assert budget("--algo", "adarl-control", *cheetah, "--total-steps", "50000")[1:] == (
+        10_000,
+        2_500,
+    )
+    assert budget("--algo", "sac", *cheetah, "--total-steps", "40000")[2] == 2_000
+    # explicit flags and presets win
+    assert budget("--algo", "adarl", *cheetah, "--total-steps", "100000", "--truncate-every",
+                  "30000", "--start-steps", "7000") == (100_000, 30_000, 7_000)  # fmt: skip
+    assert budget("--algo", "adarl", *cheetah, "--preset", "smoke")[1:] == (500, 500)
+    # the paper's four keep the paper's settings, and so do the presets
+    assert budget("--algo", "adarl", "--task", "hopper", "--total-steps", "100000") == (
+        100_000, 1_000_000, 10_000,
+    )  # fmt: skip
+    assert budget("--algo", "sac", "--task", "walker2d", "--total-steps", "40000")[2] == 10_000
+    assert budget("--algo", "adarl", "--preset", "quickstart") == (150_000, 30_000, 5_000)
+
+
+def test_help_says_the_budget_rule(capsys):
+    out = help_text(capsys, "--algo", "adarl")
+    assert re.search(r"--truncate-every INT .*?on other tasks: total-steps / 5\)", out)
+    assert re.search(r"--start-steps INT .*?on other tasks: 5% of total-steps, at most 10,000", out)
+    assert "what neither a flag nor --preset sets follows --total-steps" in out
 
 
 def test_tasks_shows_the_adarl_default_budget(capsys):
