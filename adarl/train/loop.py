@@ -407,11 +407,10 @@ class Loop:
                 self.episode_done(episode)
             self.step = advance.step
             self.end_of_step(advance.events)
-            recent = self.recent_returns = self.recent_returns[-10 * len(self.seeds) :]
+            recent = self.recent_returns[-RECENT_EPISODES * len(self.seeds) :]
+            self.recent_returns = recent
             if bar is not None and (self.step - bar.n >= 256 or self.step == c.total_steps):
-                bar.set_postfix_str(
-                    f"return {np.mean(recent):.0f}" if recent else "return -", refresh=False
-                )
+                bar.set_postfix_str(progress_text(recent), refresh=False)
                 bar.update(self.step - bar.n)
             if stop is not None and stop.received is not None and self.step < c.total_steps:
                 if bar is not None:
@@ -422,6 +421,20 @@ class Loop:
         if bar is not None:
             bar.close()
         folder.finish(self.run_dir, self.step)
+
+
+#: Training episodes per seed the progress bar's return averages (over all seeds together).
+RECENT_EPISODES = 10
+
+
+def progress_text(recent: list[float]) -> str:
+    """The progress bar's figure, named (issue 62): the mean return of the last training
+    episodes the seeds finished (at most `RECENT_EPISODES` per seed, pooled), which explore and
+    run under the training dynamics, so it is not the summary's nominal evaluation return."""
+    if not recent:
+        return "train return -"
+    which = "last episode" if len(recent) == 1 else f"mean of last {len(recent)} episodes"
+    return f"train return {np.mean(recent):,.0f} ({which})"
 
 
 def _progress(total: int, start: int, enabled: bool, desc: str):

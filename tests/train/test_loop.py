@@ -107,3 +107,18 @@ def test_stop_signals_installs_nothing_outside_the_main_thread():
     thread.start()
     thread.join()
     assert seen == [before]
+
+
+def test_the_progress_bar_names_its_return(tmp_path, capsys):
+    """Issue 62: the bar's figure is the mean return of the last training episodes (exploring,
+    under the training dynamics), said as such; it read `return 1098` beside a summary of 521.3
+    nominal and nothing said what it was."""
+    assert loop.progress_text([]) == "train return -"
+    assert loop.progress_text([10.0, 20.0, 1_200.0]) == "train return 410 (mean of last 3 episodes)"
+    assert loop.progress_text([1_098.4]) == "train return 1,098 (last episode)"
+    config = smoke_sac(total_steps=600, start_steps=100, update_after=100, eval_every=500)
+    trainers.train(config, tmp_path / "run", progress=True)
+    bar = capsys.readouterr().err.replace("\r", "\n").splitlines()
+    last = [line for line in bar if "600/600" in line][-1]
+    episodes = [float(r["return"]) for r in read_csv(tmp_path / "run" / "episodes.csv")][-10:]
+    assert f"train return {np.mean(episodes):,.0f} (mean of last {len(episodes)} episodes)" in last
