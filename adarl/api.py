@@ -6,7 +6,7 @@ scripts, with the same validation, run folder and exact resume.
                       total_steps=200_000, dynamics="uniform:body:torso.mass=4..9")
     run.final_ranks                # {"actor_1": 31.0, ...}, mean over seeds
     policy = adarl.load_policy("runs/hc", seed=0)
-    adarl.evaluate("runs/hc", sweep="mass_scale=0.8:1.2:5")
+    adarl.evaluate("runs/hc", sweep="mass_scale=0.8..1.2:5")
     adarl.report(["runs/hc"], out="runs/hc/report")
 
 `env_fn` trains on a Gymnasium env that is not registered: a callable returning it (a class
@@ -147,7 +147,7 @@ def load_policy(run_dir: str | Path, seed: int = 0, step: int | None = None):
 
 
 def evaluate(runs: str | Path | Sequence[str | Path], **options) -> int:
-    """`adarl evaluate RUNS` with `options` as its flags (`sweep="mass_scale=0.8:1.2:5"`,
+    """`adarl evaluate RUNS` with `options` as its flags (`sweep="mass_scale=0.8..1.2:5"`,
     `suite="paper"`, `episodes=5`, `dynamics=...`); writes what the command writes."""
     return _cli("evaluate", _paths(runs), options)
 

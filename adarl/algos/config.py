@@ -28,7 +28,8 @@ class RunConfig:
     # Gymnasium keywords of the task's env, k=v,k=v or JSON, e.g. xml_file=my_robot.xml
     env_kwargs: str = ""
     env_module: str = ""  # a module to import first, which registers the task's Gymnasium id
-    # physics schedule: paper, ompo, nominal, uniform, default, fixed:p=v,… (docs/envs.md)
+    # physics schedule: paper, ompo, nominal, uniform, default, fixed:p=v,…; uniform:p=LOW..HIGH
+    # varies p by episode (outside the paper's four tasks, only what the spec names; docs/envs.md)
     dynamics: str = "paper"
     physics: str = "consistent"  # consistent (recompile: masses follow geometry) or ompo
     model_version: str = "v5"  # Gymnasium's v5 or v4 (the port of the paper's Gym v3) models

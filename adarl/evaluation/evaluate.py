@@ -56,7 +56,7 @@ class EvalSpec:
         holds: Sequence[str] = (),
         **kwargs,
     ) -> EvalSpec:
-        """Build from CLI strings: `--dynamics`, repeated `--sweep P=lo:hi:n`, `--hold P=v`."""
+        """Build from CLI strings: `--dynamics`, repeated `--sweep P=LO..HI[:N]`, `--hold P=v`."""
         spec = cls(**kwargs)
         if spec.episodes < 1:
             raise UsageError(f"--episodes must be ≥ 1, got {spec.episodes}")

@@ -108,7 +108,7 @@ def robustness_section(runs: list[Run], folder: Path, colours, notes: list[str])
     if not groups:
         return Section(
             "Robustness",
-            "No sweeps found; run `adarl evaluate RUN --sweep P=LO:HI:N` to add them.\n",
+            "No sweeps found; run `adarl evaluate RUN --sweep P=LO..HI:N` to add them.\n",
         )
     files, lines = [], []
     order = sort_tasks(k[0] for k in groups)
