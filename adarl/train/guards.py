@@ -133,3 +133,33 @@ class DivergenceWatch:
                 flush=True,
             )
             self.warned = True
+
+
+def check_logged_physics(run_dir: str | os.PathLike, task: str, dynamics: str) -> None:
+    """On resume: a one-line UsageError when the run's episodes.csv shows a parameter varying
+    that its dynamics spec, as this adarl reads it, holds fixed. The run was trained under
+    another reading of the spec (before issue 62, a range on a task outside the paper's four also
+    drew mass_scale and friction_scale), and resuming it would not continue what it trained."""
+    import csv
+
+    from adarl.envs import parse_dynamics
+    from adarl.runs import layout
+
+    path = Path(run_dir) / layout.EPISODES_CSV
+    if not path.is_file():
+        return
+    varying = set(parse_dynamics(dynamics, task).sinusoids)
+    seen: dict[str, set[str]] = {}
+    with path.open(newline="") as f:
+        for row in csv.DictReader(f):
+            for column, value in row.items():
+                if column and column.startswith(layout.PARAM_PREFIX) and value not in ("", None):
+                    seen.setdefault(column, set()).add(value)
+    for column, values in seen.items():
+        name = column.removeprefix(layout.PARAM_PREFIX)
+        if name not in varying and len(values) > 1:
+            raise UsageError(
+                f"{path} shows {name} varying over {len(values)} values, but the run's dynamics "
+                f"{dynamics!r} holds it fixed in this adarl: the run was trained under an older "
+                "reading of its spec; resume it with the adarl it started on, or start a new run"
+            )

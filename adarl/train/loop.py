@@ -34,7 +34,7 @@ from adarl.errors import Stopped, UsageError
 from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, folder, layout, logs, provenance
 from adarl.runs.lock import RunLock
-from adarl.train.guards import DivergenceWatch
+from adarl.train.guards import DivergenceWatch, check_logged_physics
 from adarl.train.learner import Episode, Event, Learner, Truncation, due
 
 LOGS = (layout.EPISODES_CSV, layout.TRAIN_CSV, layout.EVAL_CSV)
@@ -112,6 +112,8 @@ def train(
             # the learner's checks (environments, dynamics, memory) come before any checkpoint
             # is read, so a refusal leaves a damaged newest one under its own name
             loop = Loop(make_learner(config), run_dir, progress)
+            if getattr(config, "dynamics", None) and getattr(config, "task", None):
+                check_logged_physics(run_dir, config.task, config.dynamics)
             path, arrays, meta = folder.newest_to_resume(run_dir, config)
             if meta is None:  # killed before its first checkpoint: start again, nothing half-done
                 loop.learner.fresh()
@@ -152,12 +154,13 @@ def start_line(config, algo: str, step: int = 0) -> str:
 
 
 def announce(config, algo: str, step: int = 0) -> None:
-    """Print `start_line` (stdout) and the budget's warnings (stderr, `warning: ...`, one line
+    """Print `start_line` (stdout) and, as a run starts (not as it resumes: it said them then,
+    and the summary says them again), the budget's warnings (stderr, `warning: ...`, one line
     each: no cut, mostly random warm-up), after the run's checks and before its first step."""
     from adarl.algos import schedule
 
     print(start_line(config, algo, step), flush=True)
-    for warning in schedule.budget_words(config)[1]:
+    for warning in schedule.budget_words(config)[1] if step == 0 else ():
         print(f"warning: {warning}", file=sys.stderr, flush=True)
 
 

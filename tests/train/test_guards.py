@@ -92,3 +92,52 @@ def test_the_device_memory_check_counts_the_accelerator(monkeypatch):
         "256 seeds (buffers 1.0 GiB, networks 0.2 GiB) need 1.2 GiB but the accelerator has "
         "1.0 GiB of memory; lower --size"
     )
+
+
+def _episodes(run, columns: dict[str, list[float]]):
+    names = list(columns)
+    rows = zip(*columns.values(), strict=True)
+    text = "step,seed,episode,return,length," + ",".join(f"p_{n}" for n in names) + "\n"
+    text += "".join(
+        f"{100 * i},0,{i},1.0,10," + ",".join(map(str, r)) + "\n" for i, r in enumerate(rows)
+    )
+    (run / "episodes.csv").write_text(text)
+
+
+def test_a_resume_whose_logged_physics_vary_what_its_spec_now_fixes_is_refused(tmp_path):
+    # a run trained before issue 62: `uniform:body:pole.mass=4..6` on a Gymnasium task also drew
+    # mass_scale each episode; this adarl reads the spec as varying the pole's mass alone
+    from adarl.errors import UsageError
+    from adarl.train.guards import check_logged_physics
+
+    spec = "uniform:body:pole.mass=4..6"
+    _episodes(tmp_path, {"mass_scale": [0.91, 1.13, 0.85], "body:pole.mass": [4.2, 5.5, 4.9]})
+    with pytest.raises(UsageError, match="shows mass_scale varying over 3 values"):
+        check_logged_physics(tmp_path, "InvertedPendulum-v5", spec)
+    _episodes(tmp_path, {"mass_scale": [1.0, 1.0, 1.0], "body:pole.mass": [4.2, 5.5, 4.9]})
+    check_logged_physics(tmp_path, "InvertedPendulum-v5", spec)  # what it trained: goes on
+    _episodes(tmp_path, {"mass_scale": [0.91, 1.13, 0.85]})
+    check_logged_physics(tmp_path, "InvertedPendulum-v5", "paper")  # the generic schedule varies it
+
+
+def test_the_resume_checks_the_logged_physics_before_reading_a_checkpoint(tmp_path, monkeypatch):
+    # the loop calls the check on every resume (planted: without the call, this resume goes on)
+    import adarl.train.loop as loop
+
+    calls = []
+    monkeypatch.setattr(loop, "check_logged_physics", lambda *a: calls.append(a) or (_ for _ in ()).throw(SystemExit(7)))  # fmt: skip
+    monkeypatch.setattr(loop.folder, "lock_to_resume", lambda run_dir, lock: True)
+
+    class Config:
+        task, dynamics = "InvertedPendulum-v5", "paper"
+
+        def validate(self):
+            pass
+
+    class Stub:
+        algo = "sac"
+
+    monkeypatch.setattr(loop, "Loop", lambda learner, run_dir, progress: Stub())
+    with pytest.raises(SystemExit):
+        loop.train(lambda config: None, Config(), tmp_path, resume=True)
+    assert calls == [(tmp_path, "InvertedPendulum-v5", "paper")]
