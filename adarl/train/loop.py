@@ -319,12 +319,15 @@ class Loop:
         for name, rows in own_rows().items() if own_rows is not None else ():
             self.logs[name].write(rows)
 
-    def check_divergence(self) -> None:
+    def check_divergence(self) -> bool:
         """Stop the run (or warn once) on non-finite parameters, optimiser states, metrics or
-        returns (docs/reliability.md)."""
+        returns (docs/reliability.md); whether this check found any (`--on-divergence
+        continue` returns)."""
         for quantity, seeds in self.learner.nonfinite(self.step).items():
             self.watch.note(quantity, seeds)
-        self.watch.check(self.step)
+        found = bool(self.watch.found)
+        self.watch.check(self.step)  # clears what it found
+        return found
 
     def checkpoint(self) -> None:
         self.check_divergence()  # never checkpoint non-finite parameters
@@ -365,9 +368,9 @@ class Loop:
         truncations.csv rows the learner returns. Weights gone non-finite since the last check
         stop the run here (exit 3), before any SVD (`--on-divergence continue`: the cut leaves
         a non-finite layer as it was, `adarl.lowrank.cut_layer`)."""
-        self.check_divergence()  # read-only: the numbers of a finite run do not change
+        diverged = self.check_divergence()  # read-only: a finite run's numbers do not change
         if pre_checkpoint and self.config.checkpoint_before_truncation:
-            if self.learner.parameters_finite() and not self.watch.found:
+            if self.learner.parameters_finite() and not diverged:
                 self.save(phase=layout.PRE_TRUNCATION)
         result: Truncation = self.learner.truncate(self.step)
         buf = BytesIO()

@@ -39,6 +39,10 @@ def step_names(run_dir):
 # ----------------------------------------------------------------------------- SAC family
 SAC_POISON = {  # what goes non-finite -> (how, the watch's words)
     "critic": (lambda s: dict(s, critic=poison_one(s["critic"], np.nan)), "critic parameters"),
+    "critic_target": (  # the target alone: the critic itself still finite
+        lambda s: dict(s, critic_target=poison_one(s["critic_target"], np.nan)),
+        "critic target parameters",
+    ),
     "actor_mu": (
         lambda s: dict(s, opt_actor=s["opt_actor"]._replace(mu=poison_one(s["opt_actor"].mu, np.inf))),
         "actor optimiser state",

@@ -2,7 +2,7 @@
 truncation (jaxlib's SVD of a matrix holding inf does not return): the run stops there with exit
 3 (`Diverged`) before the cut; with `--on-divergence continue` the cut leaves the non-finite
 layer as it was and training goes on to the end, and no pre-truncation checkpoint is written
-after the divergence warning."""
+after the divergence warning, whether the weights or only a metric went non-finite."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from adarl.algos.sac_config import SAC_FAMILY
 from adarl.errors import Diverged
 from adarl.runs import layout
 from adarl.runs.logs import read_csv
-from adarl.train import sac_learner, trainers
+from adarl.train import sac_family, sac_learner, trainers
 
 
 def adarl_config(**overrides):
@@ -83,3 +83,29 @@ def test_with_on_divergence_continue_the_cut_leaves_the_inf_layer_and_goes_on(
     assert np.isnan(spectra[actor][0]).all()
     critic = next(k for k in spectra.files if k.startswith("q1"))
     assert np.isfinite(spectra[critic][0]).all()  # the finite layers were cut as usual
+
+
+def test_a_nan_metric_with_finite_weights_before_a_cut_writes_no_pre_truncation_checkpoint(
+    tmp_path, monkeypatch, capsys
+):
+    """The other half of the rule: the weights stay finite, but a divergence is noted at the
+    cut's check (a NaN loss): the warning is printed and no pre-truncation checkpoint follows."""
+    config = adarl_config(on_divergence="continue", checkpoint_before_truncation=True)
+    steps = schedule.truncation_steps(config)
+    original = sac_learner.SACLearner.advance
+
+    def then_nan_loss(self, t):
+        advance = original(self, t)
+        if advance.step == steps[0]:  # the latest train.csv metrics, as if loss_q went NaN
+            means = {k: np.zeros(len(self.seeds)) for k in sac_family.WATCHED_METRICS}
+            self.metric_means = dict(means, loss_q=np.full(len(self.seeds), np.nan))
+        return advance
+
+    monkeypatch.setattr(sac_learner.SACLearner, "advance", then_nan_loss)
+    run_dir = tmp_path / "run"
+    trainers.train(config, run_dir, progress=False)
+    assert (run_dir / "DONE").exists()
+    err = capsys.readouterr().err
+    assert f"training diverged at step {steps[0]}: non-finite loss_q (seed 1)" in err, err
+    pre = run_dir / layout.PRE_TRUNCATION_DIR
+    assert not pre.exists() or not list(pre.iterdir())
