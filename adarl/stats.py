@@ -367,10 +367,12 @@ def _inverted_interval(
     is the 1, a tie at every δ). The test accepts δ when p = min(1, 2·min(greater, less)) > α,
     α = 1 − confidence, i.e. when both counts exceed c = total·α/2 − 1: δ ∈ [v₍ₖ₎, v₍ₘ₋ₖ₊₁₎]
     with k the smallest integer above c (order statistics of the m breakpoints); the whole line
-    when k ≤ 0 (the test can never reject at this level)."""
+    when k ≤ 0 (the test can never reject at this level). A c within rounding of an integer is
+    that integer (1 − 0.9 is not 0.1 in binary: 3 vs 3 seeds at 90% have c = 0 exactly)."""
     v = np.sort(np.asarray(breakpoints, float))
     alpha = 1.0 - confidence
-    k = math.floor(total * alpha / 2.0 - 1.0) + 1  # smallest integer > total·α/2 − 1
+    c = total * alpha / 2.0 - 1.0
+    k = math.floor(c + 1e-9 * max(1.0, abs(c))) + 1  # smallest integer > c
     if k <= 0:
         return float("-inf"), float("inf")
     return float(v[k - 1]), float(v[v.size - k])
