@@ -9,7 +9,9 @@ from __future__ import annotations
 import csv
 
 import numpy as np
+import pandas as pd
 import pytest
+import scipy.stats
 from synthetic_runs import write_run
 
 from adarl.cli.main import main
@@ -86,6 +88,13 @@ def test_the_report_leaves_nan_finals_out_of_the_mean(tmp_path, capsys):
     index = (out / "index.md").read_text(encoding="utf-8")
     cell = f"| hopper, final checkpoint | {np.mean(finite):.1f} ± {np.std(finite, ddof=1):.1f} |"
     assert cell in index, index[:3000]  # the two finite seeds' mean and SD
+    # the per-task section's final mean and its t interval: the two finite seeds' too
+    per_task = pd.read_csv(out / "tables" / "per_task.csv").iloc[0]
+    half = scipy.stats.t.ppf(0.975, 1) * np.std(finite, ddof=1) / np.sqrt(2)
+    assert per_task["seeds"] == 3
+    assert per_task["final_mean"] == pytest.approx(np.mean(finite), rel=1e-5)
+    assert per_task["final_low"] == pytest.approx(np.mean(finite) - half, rel=1e-5)
+    assert per_task["final_high"] == pytest.approx(np.mean(finite) + half, rel=1e-5)
 
 
 @pytest.mark.parametrize("text", ["", "1e999", "lots"])
