@@ -44,6 +44,20 @@ def test_plan_covers_every_seed_and_grid_point(run):
     assert pickle.loads(pickle.dumps(units[0])) == units[0]  # what a spawned worker receives
 
 
+def test_the_episode_budget_counts_every_seed_of_every_run(run, tmp_path, monkeypatch):
+    """3 points x (2 + 3) seeds x 2 episodes = 30 episodes: a budget of 29 refuses them."""
+    other = load_run(write_run(tmp_path, "other", seeds=(0, 1, 2)))
+    sweep = spec(sweeps=["torso_length=0.3:0.5:3"])
+    monkeypatch.setattr(evaluate.grid, "MAX_EPISODES", 29)
+    with pytest.raises(UsageError, match="3 points x 5 seeds x 2 episodes are 30 episodes"):
+        evaluate.plan([run, other], sweep)
+    with pytest.raises(UsageError, match="3 points x 3 seeds x 2 episodes are 18 episodes"):
+        monkeypatch.setattr(evaluate.grid, "MAX_EPISODES", 17)
+        evaluate.plan([other], sweep)
+    monkeypatch.setattr(evaluate.grid, "MAX_EPISODES", 30)
+    assert len(evaluate.plan([run, other], sweep)) == 3 * 5
+
+
 @pytest.mark.parametrize(
     "kwargs, fragment",
     [

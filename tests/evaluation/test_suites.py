@@ -312,3 +312,53 @@ def test_ray_backend_equals_serial(hopper_run, monkeypatch, local_ray_turn):
     (on_ray,) = suites.run_suite(runs, "m2td3-1d", workers=2, backend="ray", **kwargs)
     assert len(serial) == 10 * 2
     pd.testing.assert_frame_equal(serial, on_ray)
+
+
+def test_a_seeds_episode_count_is_that_of_its_point_with_the_fewest():
+    """A point that ran fewer episodes (an interrupted evaluation) shows in the count."""
+    rng = np.random.default_rng(1)
+    table = constructed_table({0: rng.uniform(0, 100, (3, 2)), 3: rng.uniform(0, 100, (3, 2))}, 3)
+    short = (table["seed"] == 3) & (table["dynamics"] == "fixed:a=0.2,b=2") & (table["episode"] > 0)
+    summary = suites.seed_summary(table[~short], "s").set_index("seed")
+    assert summary.at[0, "episodes"] == 3  # every point ran 3
+    assert summary.at[3, "episodes"] == 1  # one point ran 1 of 3
+    assert summary.at[3, "points"] == 6
+
+
+@pytest.mark.parametrize("points", [1, 0, -3])
+def test_fewer_than_two_points_per_dimension_are_refused(points):
+    with pytest.raises(UsageError, match=rf"--points must be ≥ 2, got {points}") as err:
+        suites.get_suite("m2td3-1d", "hopper", points)
+    assert "\n" not in str(err.value)
+    assert suites.get_suite("m2td3-1d", "hopper", 2).axes()[0].values == (0.1, 3.0)
+
+
+def test_the_episode_budget_counts_every_seed(hopper_run, monkeypatch):
+    """m2td3-2d at 2 points: 4 points x 2 seeds x 30 episodes = 240 episodes (120 per seed)."""
+    from adarl.results.runs import find_runs
+
+    runs = find_runs([hopper_run])
+    assert len(runs[0].seeds) == 2
+    monkeypatch.setattr(grid, "MAX_EPISODES", 239)
+    with pytest.raises(UsageError, match="4 points x 2 seeds x 30 episodes are 240 episodes"):
+        suites.plan_suite(runs, "m2td3-2d", points=2)
+    monkeypatch.setattr(grid, "MAX_EPISODES", 240)
+    assert len(suites.plan_suite(runs, "m2td3-2d", points=2)) == 4 * 2
+
+
+def test_the_suites_episode_budget_counts_every_seed_of_every_run(
+    hopper_run, tmp_path, monkeypatch
+):
+    """Two runs of 2 and 3 seeds: 4 points x 5 seeds x 30 episodes = 600, more than either
+    run's own 240 and 360."""
+    from synthetic_runs import write_run
+
+    from adarl.results.runs import find_runs
+
+    other = write_run(tmp_path, "other", seeds=(2, 3, 4))
+    runs = find_runs([hopper_run, other])
+    monkeypatch.setattr(grid, "MAX_EPISODES", 599)
+    with pytest.raises(UsageError, match=r"4 points x 5 seeds x 30 episodes are 600 episodes"):
+        suites.plan_suite(runs, "m2td3-2d", points=2)
+    monkeypatch.setattr(grid, "MAX_EPISODES", 600)
+    assert len(suites.plan_suite(runs, "m2td3-2d", points=2)) == 4 * 5
