@@ -401,3 +401,54 @@ def test_the_committed_report_and_results_are_the_rows_own(script, tmp_path):
                    "w = +0.623 [+0.576, +0.670]", "a = 22.87 [16.07, 29.67], F = 36.7",
                    "b = +0.165 [−0.272, +0.601]", "w = +0.497 [+0.436, +0.558]"):  # fmt: skip
         assert quoted in results, quoted
+
+
+def test_runs_off_the_design_stay_out_of_the_width_effect(script, tmp_path):
+    """The arm's design runs by statsmodels' OLS on the ranks drawn here; runs of another
+    schedule or with three cuts, whose ranks would reverse the effect, change nothing."""
+    import pandas as pd
+    import statsmodels.formula.api as smf
+
+    rng = np.random.default_rng(11)
+    drawn = []
+
+    def rank(task, rule, width, beta, seed):
+        value = int(rng.integers(15, 40)) * (1 + (width == 128))
+        drawn.append({"task": task, "width": width, "beta": beta, "rank": value})
+        return value
+
+    _design(tmp_path, lambda task, rule, seed: rank(task, rule, 64, 0.98, seed), rules=("energy",), tasks=("InvertedPendulum-v5", "walker2d"))  # fmt: skip
+    _arm(tmp_path, rank, rules=("energy",))
+    for seed, task, width, ranks, steps in (
+        (7, "walker2d", 64, 60, 50_000),  # another budget
+        (8, "walker2d", 128, 2, 50_000),
+        (9, "InvertedPendulum-v5", 64, [60, 60, 60], 100_000),  # three cuts
+        (10, "InvertedPendulum-v5", 128, [2, 2, 2], 100_000),
+    ):
+        _run(tmp_path, task, "energy", seed, ranks, width=width, total_steps=steps)
+    seeds, _ = script.load([tmp_path])
+    assert (seeds["excluded"] != "").sum() == 4
+    frame = pd.DataFrame(drawn).assign(
+        cell=lambda f: f["task"] + f["beta"].astype(str),
+        wide=lambda f: (f["width"] == 128).astype(float),
+        log_rank=lambda f: np.log(f["rank"].astype(float)),
+    )
+    assert len(frame) == 2 * (5 + 3 * 3)
+    ols = smf.ols("log_rank ~ C(cell) + wide", frame).fit()
+    effect = script.width_effect(script.width_arm(seeds, "energy"))
+    assert effect["n"] == len(frame)
+    assert effect["effect"] == pytest.approx(ols.params["wide"])
+    assert effect["p"] == pytest.approx(ols.pvalues["wide"])
+    (width,) = (t for t in script.primaries(seeds) if (t["rule"], t["test"]) == ("energy", "width"))
+    assert width["fit"]["effect"] == pytest.approx(ols.params["wide"])
+
+
+def test_a_seed_missing_one_critics_ranks_has_no_critic_rank(script, tmp_path):
+    _run(tmp_path, "hopper", "energy", 0, 20, critics=([30] * 4, [34] * 4))
+    _run(tmp_path, "hopper", "energy", 1, 20, critics=([30] * 4, []))  # no q2_1 rows
+    _run(tmp_path, "hopper", "energy", 2, 20, critics=([], [34] * 4))  # no q1_1 rows
+    seeds, _ = script.load([tmp_path])
+    critic = dict(zip(seeds["seed"], seeds["critic"], strict=True))
+    assert critic[0] == 32.0  # the mean of the two critics' final ranks
+    assert np.isnan(critic[1]) and np.isnan(critic[2])  # not one critic's rank alone
+    assert list(seeds["actor"]) == [20, 20, 20] and list(seeds["excluded"]) == ["", "", ""]
