@@ -21,6 +21,7 @@ __all__ = [
     "DynamicsSchedule",
     "Sinusoid",
     "TaskSpec",
+    "check_dynamics",
     "env_options",
     "get_task",
     "list_tasks",
@@ -29,7 +30,7 @@ __all__ = [
     "parse_dynamics",
 ]
 
-_LAZY = {"make", "make_vec", "DynamicsEnv"}
+_LAZY = {"make", "make_vec", "DynamicsEnv", "check_dynamics"}
 
 
 def __getattr__(name):

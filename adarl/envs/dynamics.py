@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adarl.envs.params import Sinusoid, check_given, param_check
+from adarl.envs.params import Sinusoid, check_given, check_once, param_check, parameter_key
 from adarl.envs.tasks import TaskSpec, get_task
 from adarl.errors import UsageError, check_choice
 
@@ -64,6 +64,7 @@ class DynamicsSchedule:
             raise UsageError(
                 f"parameter {sorted(both)[0]!r} is both constant and varying; allowed: one of the two"
             )
+        check_once([*self.constants, *self.sinusoids])  # body:a.mass is body:a.mass[0]
         for name, s in self.sinusoids.items():
             if name in spec.optional_params and spec.paper:
                 raise UsageError(
@@ -163,6 +164,8 @@ class DynamicsSchedule:
         spec = self.spec
         for name in values:
             _check_name(spec, name)
+        check_once(values)
+        replaced = {parameter_key(k) for k in values}  # under any spelling
         fixed, varying = {}, {}
         for k, v in values.items():
             _check_not_a_grid(k, v, self.name)
@@ -173,12 +176,21 @@ class DynamicsSchedule:
         suffix = ",".join(
             f"{k}={fixed[k]!r}" if k in fixed else f"{k}={values[k].strip()}" for k in values
         )
-        dropped = {p for p in self.inherited if p not in values} if varying else set()
-        kept = {p: s for p, s in self.sinusoids.items() if p not in values and p not in dropped}
+        dropped = (
+            {p for p in self.inherited if parameter_key(p) not in replaced} if varying else set()
+        )
+        kept = {
+            p: s
+            for p, s in self.sinusoids.items()
+            if parameter_key(p) not in replaced and p not in dropped
+        }
         return DynamicsSchedule(
             task=spec,
             name=f"{self.name}{',' if ':' in self.name else ':'}{suffix}",
-            constants={**{p: c for p, c in self.constants.items() if p not in varying}, **fixed},
+            constants={
+                **{p: c for p, c in self.constants.items() if parameter_key(p) not in replaced},
+                **fixed,
+            },
             sinusoids={**kept, **varying},
             mode=self.mode,
             inherited=() if varying else tuple(p for p in self.inherited if p not in values),
@@ -305,7 +317,11 @@ def _check_name(spec, name: str) -> None:
     if name in spec.all_params:
         return
     if spec.kind != "gym" and _addressed(name):
-        _default(spec, name)  # the element must exist in the model: one line naming it
+        default = _default(spec, name)  # the element must exist in the model: one line naming it
+        if name.startswith("body:") and not default > 0:  # a massless body (the world) scales not
+            raise UsageError(
+                f"cannot set {name}: its compiled mass is {default:g}; allowed: bodies with mass"
+            )
         return
     allowed = ", ".join(spec.all_params) or "none (fixed dynamics)"
     where = (
@@ -319,6 +335,7 @@ def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
     if kind == "default":
         raise _default_takes_no_values(text)
     values: dict[str, float] = {}
+    given = []
     for item in tail.split(","):
         name, eq, value = (part.strip() for part in item.partition("="))
         if not eq or not name or not value:
@@ -327,10 +344,8 @@ def _parse_values(text: str, kind: str, tail: str, spec) -> dict[str, float]:
                 f"{kind}:NAME=VALUE[,NAME=VALUE...] with NAME one of {', '.join(spec.all_params)}"
             )
         _check_name(spec, name)
-        if name in values:
-            raise UsageError(
-                f"parameter {name!r} given twice in dynamics {text!r}; allowed: once each"
-            )
+        given.append(name)
+        check_once(given, f" in dynamics {text!r}")
         _check_not_a_grid(name, value, text)
         values[name] = value if ".." in value else check_given(name, value, _default(spec, name))
     return values

@@ -301,25 +301,21 @@ def make(
     `MujocoEnv` gets generic and addressed parameters (adarl.envs.elements), any other env
     fixed dynamics (`adarl.envs.plain`). `max_episode_steps` (None: 1000 for the paper's four,
     the registered limit otherwise)."""
-    check_choice("physics", physics, PHYSICS)
-    spec = get_task(task, model_version, env_kwargs=env_kwargs or "", env_module=env_module)
+    spec, schedule = check_dynamics(
+        dynamics,
+        task,
+        physics=physics,
+        model_version=model_version,
+        env_kwargs=env_kwargs,
+        env_module=env_module,
+        **overrides,
+    )
     if max_episode_steps is None:
         max_episode_steps = spec.max_episode_steps
-    if not spec.paper and physics != "consistent":
-        raise UsageError(
-            f"physics {physics!r} applies to hopper, walker2d, ant, humanoid; allowed for task "
-            f"{spec.name!r}: consistent"
-        )
-    if spec.kind == "gym":
+    if schedule is None:
         from adarl.envs.plain import make_plain
 
         return make_plain(spec, dynamics, seed, max_episode_steps=max_episode_steps, **overrides)
-    schedule = parse_dynamics(dynamics, spec).with_overrides(**overrides)
-    if physics == "ompo" and any(is_addressed(p) for p in schedule.centroid()):
-        raise UsageError(
-            "addressed parameters (KIND:NAME.ATTR) need physics 'consistent'; allowed under "
-            "ompo: the task's named parameters"
-        )
     if (
         isinstance(max_episode_steps, bool)
         or not isinstance(max_episode_steps, int)
@@ -340,6 +336,76 @@ def make(
     return DynamicsEnv(
         raw, spec, schedule, seed=seed, max_episode_steps=max_episode_steps, physics=physics
     )
+
+
+#: (task, model version, XML, parameters) whose model `check_builds` compiled in this process
+_BUILT: set[tuple] = set()
+
+
+def check_builds(spec: TaskSpec, schedule: DynamicsSchedule) -> None:
+    """Compile `schedule`'s model once at its centroid, with a builder of its own, as a reset
+    under `consistent` physics would: what the model refuses (a mass its geoms cannot carry, a
+    geom its fromto sets, MuJoCo's compiler) is a one-line `UsageError` when an env is made,
+    before a run writes anything, not at its first reset. Once per task and parameters."""
+    if schedule.mode == "default" or spec.kind == "gym":
+        return
+    from adarl.envs.dynamics import xml_path
+    from adarl.envs.elements import GenericBuilder
+
+    params = schedule.centroid()
+    xml = xml_path(spec)
+    key = (spec.name, spec.version, xml, tuple(params.items()))
+    if key in _BUILT:
+        return
+    builder = ModelBuilder(spec, xml, textures=False) if spec.paper else GenericBuilder(xml, False)
+    try:
+        builder.compile(params)
+    except UsageError:
+        raise
+    except ValueError as exc:  # MuJoCo's compiler
+        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise UsageError(
+            f"cannot build the model of {spec.name} under dynamics {schedule.name!r}: {message}"
+        ) from None
+    _BUILT.add(key)
+
+
+def check_dynamics(
+    dynamics: str | DynamicsSchedule,
+    task: str | TaskSpec,
+    *,
+    physics: str = "consistent",
+    model_version: str = "v5",
+    env_kwargs: str | dict = "",
+    env_module: str = "",
+    max_episode_steps: int | None = None,
+    **overrides: float,
+) -> tuple[TaskSpec, DynamicsSchedule | None]:
+    """Every check `make` makes of its task, physics and dynamics, without making the env (it
+    takes `make`'s keywords; `max_episode_steps` is `make`'s to check): the task's spec and the
+    schedule, its model built once under `consistent` physics (`check_builds`); None for a task
+    with fixed dynamics (`adarl.envs.plain`)."""
+    check_choice("physics", physics, PHYSICS)
+    spec = get_task(task, model_version, env_kwargs=env_kwargs or "", env_module=env_module)
+    if not spec.paper and physics != "consistent":
+        raise UsageError(
+            f"physics {physics!r} applies to hopper, walker2d, ant, humanoid; allowed for task "
+            f"{spec.name!r}: consistent"
+        )
+    if spec.kind == "gym":
+        from adarl.envs.plain import check_plain
+
+        check_plain(spec, dynamics, overrides)
+        return spec, None
+    schedule = parse_dynamics(dynamics, spec).with_overrides(**overrides)
+    if physics == "ompo" and any(is_addressed(p) for p in schedule.centroid()):
+        raise UsageError(
+            "addressed parameters (KIND:NAME.ATTR) need physics 'consistent'; allowed under "
+            "ompo: the task's named parameters"
+        )
+    if physics == "consistent":
+        check_builds(spec, schedule)
+    return spec, schedule
 
 
 def make_vec(

@@ -163,6 +163,23 @@ def parse_address(name: str) -> Address:
     return Address(kind, element, attr, i)
 
 
+def parameter_key(name: str):
+    """What `name` sets: itself, or for an addressed name its element and component, so that
+    `geom:floor.friction` and `geom:floor.friction[0]` are the same parameter."""
+    return parse_address(name) if is_addressed(name) else name
+
+
+def check_once(names, where: str = "") -> None:
+    """A one-line `UsageError` if two of `names` set the same parameter (`parameter_key`)."""
+    seen: dict[object, str] = {}
+    for name in names:
+        key = parameter_key(name)
+        if key in seen:
+            same = "" if seen[key] == name else f" (as {seen[key]!r})"
+            raise UsageError(f"parameter {name!r} given twice{where}{same}; allowed: once each")
+        seen[key] = name
+
+
 def param_info(name: str) -> Param:
     """The `Param` of a named parameter, or of an addressed one (its attribute's bound)."""
     if name in PARAMS:

@@ -84,6 +84,16 @@ class PlainEnv(gymnasium.Wrapper):
         raw.state = np.asarray(state["state"], dtype=np.float64)
 
 
+def check_plain(spec, dynamics, overrides) -> None:
+    """A one-line `UsageError` unless `dynamics` keeps `spec`'s own physics and nothing is set."""
+    if dynamics not in ("paper", "nominal", "default"):
+        raise UsageError(f"task {spec.name!r} has fixed dynamics; got dynamics {dynamics!r}")
+    if overrides:
+        raise UsageError(
+            f"task {spec.name!r} has no physical parameters; got {', '.join(overrides)}"
+        )
+
+
 def make_plain(
     task, dynamics="default", seed: int | None = 0, max_episode_steps: int = 1000, **overrides
 ) -> PlainEnv:
@@ -92,10 +102,5 @@ def make_plain(
     from adarl.envs.tasks import get_task, make_raw_env
 
     spec = get_task(task)
-    if dynamics not in ("paper", "nominal", "default"):
-        raise UsageError(f"task {spec.name!r} has fixed dynamics; got dynamics {dynamics!r}")
-    if overrides:
-        raise UsageError(
-            f"task {spec.name!r} has no physical parameters; got {', '.join(overrides)}"
-        )
+    check_plain(spec, dynamics, overrides)
     return PlainEnv(make_raw_env(spec), seed, max_episode_steps)

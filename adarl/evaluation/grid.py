@@ -116,18 +116,6 @@ def check_name(name: str, what: str) -> None:
         )
 
 
-def parameter_key(name: str):
-    """What `name` sets: itself, or for an addressed name its element and component, so that
-    `geom:floor.friction` and `geom:floor.friction[0]` are the same parameter."""
-    from adarl.envs.params import is_addressed
-
-    if is_addressed(name):
-        from adarl.envs.params import parse_address
-
-        return parse_address(name)
-    return name
-
-
 def parse_axis(text: str, episodes: int = 1) -> Axis:
     """Parse one `--sweep` value.
 
@@ -243,7 +231,7 @@ def build_grid(
     `UsageError` otherwise. With no axes the grid is the single point of the held values
     (possibly empty: the base dynamics alone).
     """
-    from adarl.envs.params import is_addressed
+    from adarl.envs.params import is_addressed, parameter_key
 
     allowed = list(allowed)
     holds = list(holds)

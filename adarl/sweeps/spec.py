@@ -277,9 +277,8 @@ def _unit(task, entry, seeds, total_steps, preset, values, where, envs) -> Unit:
     try:
         config = start.config()
         task_spec = task_of(config)  # made as the unit trains it: its env_kwargs, env_module
-        envs.parse_dynamics(config.dynamics, task_spec)
-        for spec in config.eval_dynamics:
-            envs.parse_dynamics(spec, task_spec)
+        for spec in (config.dynamics, *config.eval_dynamics):  # as its learner will
+            envs.check_dynamics(spec, task_spec, **config.env_options())
     except UsageError as exc:
         raise UsageError(f"{where}: {uid}: {exc}") from None
     return Unit(

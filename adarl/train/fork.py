@@ -93,10 +93,10 @@ def prepare(parent: str | Path, at: str | int, changes: Mapping[str, object]) ->
             f"{parent} is a {algo} run; forks are for the SAC family ({', '.join(SAC_FAMILY)})"
         )
     config, changed = forked_config(algo, before, changes)
-    from adarl.envs import parse_dynamics
+    from adarl.envs import check_dynamics
 
     for label in config.eval_dynamics:  # checked now: the learner would find it after the write
-        parse_dynamics(label, config.task)
+        check_dynamics(label, config.task, **config.env_options())
     step = fork_step(before, at)
     points = fork_points(parent)
     if step not in points:

@@ -96,7 +96,7 @@ class RNACLearner:
         self.seeds = [int(s) for s in config.seeds]
         self.env_options = config.env_options()
         for spec in config.eval_dynamics:  # checked now, not at the first evaluation
-            envs.parse_dynamics(spec, config.task)
+            envs.check_dynamics(spec, config.task, **self.env_options)
         # the first seed's environment gives the sizes the memory check needs; the others
         # are made after it
         self.envs = [envs.make(config.task, config.dynamics, self.seeds[0], **self.env_options)]
