@@ -202,6 +202,42 @@ def refuse_special(path: str | os.PathLike, what: str | None = None) -> None:
     )
 
 
+#: `open_in_place`'s modes: a log appended to, the lock, a log cut back
+_IN_PLACE = {
+    "a": os.O_WRONLY | os.O_CREAT | os.O_APPEND,
+    "a+": os.O_RDWR | os.O_CREAT | os.O_APPEND,
+    "r+b": os.O_RDWR,
+}
+
+
+def open_in_place(path: str | os.PathLike, mode: str):
+    """`open(path, mode)` for a file written in place (`a`, `a+`: UTF-8 text; `r+b`), never
+    through a symbolic link at `path` (O_NOFOLLOW: an OSError, ELOOP): a run folder is checked
+    for links before it is written (`refuse_links`), and this holds if one appears since."""
+    fd = os.open(path, _IN_PLACE[mode] | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
+    if "b" in mode:
+        return os.fdopen(fd, mode)
+    return os.fdopen(fd, mode, newline="", encoding="utf-8")
+
+
+def refuse_links(folder: str | os.PathLike, what: str = "run folder") -> None:
+    """A one-line UsageError naming the first symbolic link below `folder` (at any depth; a
+    linked folder is named, not entered; `folder` itself may be one, as a path a user gave): a
+    write through it would cut, replace or append to a file outside the folder. Nothing if
+    `folder` is not there."""
+    root = Path(folder)
+    for parent, folders, files in os.walk(root):  # never follows a link
+        for name in sorted([*folders, *files]):
+            path = Path(parent, name)
+            if path.is_symlink():
+                target = os.readlink(path)
+                raise UsageError(
+                    f"{what} {root} holds a symbolic link, {path} -> {target!r}; adarl never "
+                    "writes through a link out of a run folder: replace the link by the file or "
+                    "folder itself (or remove it)"
+                )
+
+
 def _check_creatable(path: Path, folder: Path, what: str) -> None:
     """`folder` (to hold `path`) exists and is writable, or its nearest existing ancestor is."""
     existing = folder

@@ -126,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
     from adarl.evaluation.evaluate import tables as evaluate_tables
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
+    from adarl.runs.folder import check_run_output
     from adarl.runs.layout import evaluation_sidecar
 
     if args.suite is not None:
@@ -154,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
     units = plan(runs, spec)  # every check, before evaluating, which takes long
     for index, run_ in enumerate(runs):
         path = Path(args.out) if args.out else default_output(run_, spec)
+        check_run_output(path)  # before the probe: no link of a run folder is written through
         check_writable_file(path)
         check_writable_file(evaluation_sidecar(path), "--out's JSON sidecar")
         check_not_smaller(path, sum(u.episodes for u in units if u.run_index == index))
@@ -178,6 +180,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     from adarl.evaluation.evaluate import tables as evaluate_tables
     from adarl.files import check_writable_file
     from adarl.results.runs import find_runs
+    from adarl.runs.folder import check_run_output
     from adarl.runs.layout import EVALUATIONS_DIR, evaluation_sidecar
 
     mixed = [
@@ -211,6 +214,7 @@ def run_suite_command(args: argparse.Namespace) -> int:
     stem = suites.file_name(args.suite, args.checkpoint)
     for index, run_ in enumerate(runs):
         episodes_path = run_.path / EVALUATIONS_DIR / f"{stem}.csv"
+        check_run_output(run_.path)
         check_writable_file(episodes_path)
         check_writable_file(evaluation_sidecar(episodes_path), "the suite's JSON sidecar")
         check_writable_file(suites.summary_path(run_, args.suite, args.checkpoint))

@@ -44,9 +44,11 @@ def run(args: argparse.Namespace) -> int:
     from adarl.files import check_writable_file
     from adarl.results.runs import load_run
     from adarl.runs.checkpoints import policy_file, policy_files, select_checkpoint
+    from adarl.runs.folder import check_run_output
 
     prepare_backend()  # before anything imports MuJoCo
     check_video_path(Path(args.video))
+    check_run_output(args.video)
     check_writable_file(args.video, "--video")
     run_ = load_run(args.run_dir)
     seed = args.seed

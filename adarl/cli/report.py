@@ -76,7 +76,9 @@ def run(args: argparse.Namespace) -> int:
     from adarl.files import check_writable_dir
     from adarl.report.build import build_report
     from adarl.report.common import ReportOptions
+    from adarl.runs.folder import check_run_output
 
+    check_run_output(args.out)  # a report into a run folder: never through a link there
     check_writable_dir(args.out)  # before reading any run
     options = ReportOptions(
         bootstrap_reps=args.bootstrap_reps,

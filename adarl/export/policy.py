@@ -15,6 +15,7 @@ from adarl.files import atomic_write_bytes, check_writable_file
 from adarl.policy import NumpyPolicy, load
 from adarl.results.runs import Run
 from adarl.runs.checkpoints import policy_file
+from adarl.runs.folder import check_run_output
 from adarl.runs.layout import checkpoint_step
 
 
@@ -54,6 +55,7 @@ def export_policy(
     out = Path(out)
     if out.is_dir():
         raise UsageError(f"--out {out} is a folder; give a file name such as policy.npz")
+    check_run_output(out)
     check_writable_file(out)
     source = policy_file(run.path, seed, checkpoint)
     policy = load(source)  # a damaged file: a one-line UsageError naming it

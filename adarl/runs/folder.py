@@ -27,6 +27,7 @@ from adarl.files import (
     probe_writable,
     read_text,
     read_yaml,
+    refuse_links,
 )
 from adarl.runs.checkpoints import config_record, load_latest_intact
 from adarl.runs.layout import (
@@ -172,6 +173,7 @@ def check_new_run_dir(run_dir: str | os.PathLike) -> None:
     """A new run's folder: writable and absent or empty (a lock file aside: a run killed before
     writing anything leaves one), else a one-line UsageError."""
     run_dir = Path(run_dir)
+    refuse_links(run_dir)  # a lock-only folder is taken: its .lock, too, is written in place
     check_writable_dir(run_dir)
     holder = lock_holder(run_dir)
     if holder:
@@ -192,6 +194,17 @@ def check_new_run_dir(run_dir: str | os.PathLike) -> None:
                 f"checkpoint; --resume cannot take it): {remake_fork(run_dir)}"
             )
     refuse_non_empty(run_dir)
+
+
+def check_run_output(path: str | os.PathLike) -> None:
+    """If `path` (a file or folder about to be written: an evaluation, a suite's summary, a
+    report) lies in a run folder, a one-line UsageError naming any symbolic link in that run
+    folder (`refuse_links`), as training checks its own folder: nothing is written through one."""
+    path = Path(os.path.abspath(path))
+    for folder in (path, *path.parents):
+        if (folder / CONFIG_FILE).is_file():
+            refuse_links(folder)
+            return
 
 
 def interrupted_fork(run_dir: Path) -> bool:
@@ -230,10 +243,12 @@ def _flag_text(value) -> str:
 
 
 def check_resume_dir(run_dir: str | os.PathLike) -> None:
-    """A run folder to resume: it exists, holds config.yaml and can be written."""
+    """A run folder to resume: it exists, holds config.yaml and no symbolic link, and can be
+    written."""
     run_dir = Path(run_dir)
     if not (run_dir / CONFIG_FILE).exists():
         raise UsageError(f"{run_dir} is not a run folder (no config.yaml)")
+    refuse_links(run_dir)
     why = probe_writable(run_dir)
     if why is not None:
         raise UsageError(f"run folder {run_dir} is not writable ({why})")

@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 
 from adarl.errors import UsageError
-from adarl.files import fs_errors
+from adarl.files import fs_errors, open_in_place
 from adarl.runs.layout import LOCK_FILE
 
 
@@ -53,7 +53,7 @@ class RunLock:
         with fs_errors(path):
             if new:
                 self.run_dir.mkdir(parents=True, exist_ok=True)
-            handle = open(path, "a+", encoding="utf-8")
+            handle = open_in_place(path, "a+")
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from adarl.errors import UsageError
-from adarl.files import fs_errors, read_text
+from adarl.files import fs_errors, open_in_place, read_text
 from adarl.runs import layout, tracking
 
 # episodes.csv: then one column p_<name> per physical parameter of the task
@@ -71,7 +71,7 @@ class CsvLog:
                 raise UsageError(f"{self.path} has columns {existing}, expected {self.columns}")
             self.columns = existing
         with fs_errors(self.path):
-            self._file = open(self.path, "a", newline="", encoding="utf-8")
+            self._file = open_in_place(self.path, "a")
             self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="raise")
             if new:
                 self._writer.writeheader()
@@ -108,13 +108,13 @@ class CsvLog:
         path = Path(path)
         size = path.stat().st_size if path.exists() else None
         if size is not None and size > offset:
-            with fs_errors(path), open(path, "r+b") as f:
+            with fs_errors(path), open_in_place(path, "r+b") as f:
                 f.truncate(offset)
         elif offset > 0 and (size is None or size < offset):
             warn = warn or (lambda line: print(line, file=sys.stderr, flush=True))
             kept = 0
             if size:
-                with fs_errors(path), open(path, "r+b") as f:
+                with fs_errors(path), open_in_place(path, "r+b") as f:
                     kept = f.read().rfind(b"\n") + 1
                     f.truncate(kept)
             what = "is missing" if size is None else f"holds {size} bytes"
