@@ -87,10 +87,13 @@ def train(
     `env_fn()` returns, for `seeds`, into `out` (default runs/<task>-<algo>-<time>); any config
     field as a keyword (`total_steps=`, `dynamics=`, `env_kwargs=`, `truncate_every=`, ...; see
     `adarl train --algo ALGO --help`). `resume=RUN_DIR` continues a run exactly (give `env_fn`
-    again if it was trained with one; nothing else). Returns the `Run`."""
+    again if it was trained with one, and `env_module=` if a module of yours registers its
+    task: adarl imports no module a run folder names; nothing else). Returns the `Run`."""
+    from adarl.envs.tasks import name_env_module
     from adarl.runs import folder
     from adarl.train import launch
 
+    name_env_module(str(config_fields.get("env_module") or ""))  # yours: it may be imported
     if env_fn is not None:
         if task is not None:
             raise UsageError("give task or env_fn, not both")
@@ -101,7 +104,8 @@ def train(
         task = register_env_fn(env_fn, env_name)
     if resume is not None:
         named = {"task": task if env_fn is None else None, "out": out, "preset": preset}
-        given = [k for k, v in named.items() if v is not None] + list(config_fields)
+        given = [k for k, v in named.items() if v is not None]
+        given += [k for k in config_fields if k != "env_module"]
         if given:
             raise UsageError(f"resume continues a run with its own settings; drop {given[0]}")
         if env_fn is not None:
@@ -148,7 +152,8 @@ def load_policy(run_dir: str | Path, seed: int = 0, step: int | None = None):
 
 def evaluate(runs: str | Path | Sequence[str | Path], **options) -> int:
     """`adarl evaluate RUNS` with `options` as its flags (`sweep="mass_scale=0.8..1.2:5"`,
-    `suite="paper"`, `episodes=5`, `dynamics=...`); writes what the command writes."""
+    `suite="paper"`, `episodes=5`, `dynamics=...`, `env_module="myrobots"` for a run of a
+    Gymnasium id a module of yours registers); writes what the command writes."""
     return _cli("evaluate", _paths(runs), options)
 
 
@@ -202,9 +207,10 @@ def _cli(command: str, positional: list[str], options: dict) -> int:
     for key, value in options.items():
         if value is None or value is False:
             continue
-        argv.append("--" + key.replace("_", "-"))
-        if value is not True:
-            argv.append(str(value))
+        for one in value if isinstance(value, list | tuple) else [value]:  # a repeated flag
+            argv.append("--" + key.replace("_", "-"))
+            if one is not True:
+                argv.append(str(one))
     parser = main.build_parser([command])
     err = io.StringIO()
     try:

@@ -275,7 +275,12 @@ def check_resumable(values: dict, where: str) -> None:
 
 def config_from_record(values: dict, where: str):
     """(algo, config) from a run's config.yaml (already read); `where` names it in errors.
-    Retired fields are dropped (`check_resumable` says whether the run can go on)."""
+    Retired fields are dropped (`check_resumable` says whether the run can go on). The config
+    is to train (a resume, a fork, a sweep's check), so its env-module must be one the user
+    named: a run folder alone never makes adarl import one (`adarl.envs.tasks.check_named`)."""
+    from adarl.envs.tasks import check_named
+
+    check_named(str(values.get("env_module") or ""), where)
     algo = record_algo(values, where)
     entry = get(algo)
     values = {k: v for k, v in values.items() if k not in entry.retired_fields}

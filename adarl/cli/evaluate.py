@@ -16,7 +16,7 @@ import argparse
 import shlex
 from pathlib import Path
 
-from adarl.cli.common import add_checkpoint_argument
+from adarl.cli.common import add_checkpoint_argument, add_env_module_argument, name_env_modules
 from adarl.errors import UsageError
 
 HELP = "evaluate every seed of a run under nominal, fixed or swept dynamics (CSV per run)"
@@ -63,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "over the same ranges, for a quicker look)",
     )  # fmt: skip
     add_checkpoint_argument(parser)
+    add_env_module_argument(parser)
     parser.add_argument(
         "--workers", type=int, default=None, help="worker processes (default: all cores)"
     )
@@ -111,6 +112,8 @@ def command_line(args: argparse.Namespace) -> str:
         parts += ["--max-episode-steps", str(args.max_episode_steps)]
     if args.out:
         parts += ["--out", args.out]
+    for module in getattr(args, "env_module", []):
+        parts += ["--env-module", module]
     return shlex.join(parts)
 
 
@@ -129,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
     from adarl.runs.folder import check_run_output
     from adarl.runs.layout import evaluation_sidecar
 
+    name_env_modules(args)
     if args.suite is not None:
         return run_suite_command(args)
     if args.backend != "local" or args.address:

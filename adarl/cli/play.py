@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 
-from adarl.cli.common import add_checkpoint_argument
+from adarl.cli.common import add_checkpoint_argument, add_env_module_argument, name_env_modules
 
 HELP = "render a seed's policy offscreen to a video (.mp4 or .gif) under chosen dynamics"
 
@@ -27,6 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--video", required=True, metavar="FILE", help="output .mp4 or .gif")
     parser.add_argument("--episodes", type=int, default=1, help="episodes to render (default 1)")
     add_checkpoint_argument(parser)
+    add_env_module_argument(parser)
     parser.add_argument("--env-seed", type=int, default=0, help="episode k resets with seed+k")
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
@@ -46,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from adarl.runs.checkpoints import policy_file, policy_files, select_checkpoint
     from adarl.runs.folder import check_run_output
 
+    name_env_modules(args)
     prepare_backend()  # before anything imports MuJoCo
     check_video_path(Path(args.video))
     check_run_output(args.video)
@@ -58,10 +60,11 @@ def run(args: argparse.Namespace) -> int:
     holds = dict(grid.parse_hold(h) for h in args.hold)
     dynamics = grid.point_label(args.dynamics, holds)
 
-    from adarl.envs import env_options, parse_dynamics
+    from adarl.envs import parse_dynamics
+    from adarl.evaluation.evaluate import run_env_options, run_task
     from adarl.policy import load
 
-    parse_dynamics(dynamics, run_.task)
+    parse_dynamics(dynamics, run_task(run_))  # the run's model: its env-kwargs and env-module
     episodes = play(
         load(path),
         run_.task,
@@ -73,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         height=args.height,
         fps=args.fps,
         max_steps=args.max_episode_steps,
-        overrides=env_options(run_.config),  # the run's physics and model version
+        overrides=run_env_options(run_),  # the run's physics, model version, env-kwargs, …
     )
     for k, ep in enumerate(episodes):
         params = ", ".join(f"{p}={v:g}" for p, v in ep.params.items())

@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import shlex
 
+from adarl.cli.common import add_env_module_argument, name_env_modules
+
 HELP = "write tables, rliable statistics and figures for a set of runs into one report folder"
 DESCRIPTION = (
     "Write tables, statistics and figures for a set of runs into one report folder. A seed's "
@@ -47,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "value in sorted order) among runs equal in all else, with Welch t intervals, exact "
         "permutation p-values and power; repeatable",
     )  # fmt: skip
+    add_env_module_argument(parser)
     parser.add_argument(
         "--last-k", type=int, default=5, metavar="K",
         help="a seed's score: the mean of its last K evaluations logged during training "
@@ -69,6 +72,8 @@ def command_line(args: argparse.Namespace) -> str:
         parts += ["--contrast", contrast]
     if args.last_k != 5:
         parts += ["--last-k", str(args.last_k)]
+    for module in args.env_module:
+        parts += ["--env-module", module]
     return shlex.join(parts)
 
 
@@ -78,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     from adarl.report.common import ReportOptions
     from adarl.runs.folder import check_run_output
 
+    name_env_modules(args)
     check_run_output(args.out)  # a report into a run folder: never through a link there
     check_writable_dir(args.out)  # before reading any run
     options = ReportOptions(

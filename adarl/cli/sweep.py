@@ -9,6 +9,7 @@ import shlex
 import textwrap
 from pathlib import Path
 
+from adarl.cli.common import add_env_module_argument, name_env_modules
 from adarl.errors import UsageError
 
 HELP = "run a sweep (tasks x algorithms x seeds) from a YAML file or preset, locally or on Ray"
@@ -82,8 +83,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--dry-run",
         action="store_true",
-        help="check the file and list the units and what each would do; run nothing",
+        help="check the file and list the units and what each would do; run nothing (and "
+        "import no env-module the file names unless --env-module names it)",
     )
+    add_env_module_argument(parser)
 
 
 def _positive(text: str) -> int:
@@ -158,7 +161,8 @@ def run(args: argparse.Namespace) -> int:
             f"--address is for --backend ray, got --address {args.address} with --backend "
             f"{args.backend}; allowed: --backend ray --address HOST:PORT, or no --address"
         )
-    sweep = spec.load(args.spec)
+    name_env_modules(args)
+    sweep = spec.load(args.spec, run=not args.dry_run)  # a dry run imports only what you name
     from adarl.sweeps import manifest, runner  # after the spec: a bad name answers at once
     from adarl.sweeps.job import start_executor
 

@@ -37,9 +37,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from adarl.envs.tasks import TASKS, get_task
+    from adarl.envs.tasks import TASKS, get_task, name_env_module
     from adarl.errors import UsageError
 
+    name_env_module(args.env_module)  # yours: adarl may import it
     own = registered_by(args.env_module)  # imports it: a failure is one line
     if args.env_kwargs and not args.names:
         raise UsageError(

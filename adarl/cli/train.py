@@ -73,7 +73,9 @@ def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
         "--resume",
         default=None,
         metavar="RUN_DIR",
-        help="continue a run from its newest complete checkpoint",
+        help="continue a run from its newest complete checkpoint (a run of a Gymnasium id "
+        "that a module of yours registers: add --env-module PKG, which adarl imports only when "
+        "you name it)",
     )
     parser.add_argument(
         "--fork",
@@ -186,8 +188,10 @@ def start_from_args(args: argparse.Namespace):
     `--algo` with `--preset` and the config fields given as flags; a one-line UsageError for
     flags that do not go together."""
     from adarl.algos import registry
+    from adarl.envs.tasks import name_env_module
     from adarl.train import fork, launch
 
+    name_env_module(args.cfg_env_module or "")  # the one module a run may import: yours
     if args.at is not None and not args.fork:
         raise UsageError("--at is for --fork RUN_DIR")
     if args.fork:
@@ -207,7 +211,7 @@ def start_from_args(args: argparse.Namespace):
             )
         return launch.ForkOf(args.fork, args.at, flags_from_args(args))
     if args.resume:
-        given = list(flags_from_args(args))
+        given = [name for name in flags_from_args(args) if name != "env_module"]
         if given or args.preset or args.out:
             extra = given[0].replace("_", "-") if given else ("preset" if args.preset else "out")
             raise UsageError(f"--resume continues a run with its own settings; drop --{extra}")

@@ -18,7 +18,9 @@ import functools
 import importlib
 import json
 import math
+import os
 import re
+import sys
 from dataclasses import dataclass, field, replace
 
 from adarl.envs.params import PARAMS, Sinusoid
@@ -245,6 +247,7 @@ def get_task(
             f"unknown task {name!r}; allowed: {', '.join(TASKS)} or a registered Gymnasium id "
             "such as HalfCheetah-v5 (adarl tasks lists them)"
         )
+    check_named(env_module, "a run folder or a file")  # before the cache of made tasks
     if env_kwargs is None and not env_module and name in _LAST:
         return _LAST[name]
     spec = _gym_task(name, kwargs_text(env_kwargs), env_module or "")
@@ -299,10 +302,53 @@ def kwargs_text(env_kwargs) -> str:
     return json.dumps(kwargs, sort_keys=True) if kwargs else ""
 
 
+# A run folder or a sweep file is data: reading one never runs code (docs/reliability.md). An
+# env-module is imported only when the user names it: a flag (`--env-module M`), a keyword
+# (`adarl.train(env_module=M)`, `adarl.evaluate(..., env_module=M)`), their own sweep file when
+# it runs (not `--dry-run`); or when it is already imported (importing it again runs nothing).
+_NAMED: set[str] = set()
+_MODULE = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
+
+
+def name_env_module(*modules: str) -> None:
+    """Let `import_env_module` import each of `modules` (those the user named; empty ones are
+    skipped); a one-line `UsageError` for a name that is not a module's."""
+    for module in modules:
+        module = str(module or "").strip()
+        if not module:
+            continue
+        if not _MODULE.match(module):
+            raise UsageError(
+                f"bad env-module {module!r}; allowed: a module name such as myrobots or "
+                "my_pkg.envs (importable from the current folder or the Python path)"
+            )
+        _NAMED.add(module)
+
+
+def check_named(module: str, where: str) -> None:
+    """A one-line `UsageError` if `module` (which `where`, a run's config.yaml or a sweep file,
+    names) was not named by the user, saying how to allow it."""
+    module = str(module or "").strip()
+    if module and module not in _NAMED and module not in sys.modules:
+        raise UsageError(
+            f"{where} names env-module {module!r}, which you did not name: adarl never imports "
+            f"a module because a run folder or a file names it; allowed: add --env-module "
+            f"{module} (Python: env_module={module!r}) if you trust its code"
+        )
+
+
 def import_env_module(module: str) -> None:
-    """Import `module` (which registers a user's Gymnasium ids); a one-line `UsageError`."""
+    """Import `module` (which registers a user's Gymnasium ids) as `python -m` finds it, the
+    current folder first, if the user named it (`name_env_module`); a one-line `UsageError`
+    otherwise, or if it fails."""
     if not module:
         return
+    check_named(module, "a run folder or a file")
+    if module in sys.modules:
+        return
+    cwd = os.getcwd()
+    if not any(os.path.abspath(entry or os.curdir) == cwd for entry in sys.path):
+        sys.path.insert(0, cwd)  # as `python -m` has it (the `adarl` script has its own folder)
     try:
         importlib.import_module(module)
     except Exception as exc:  # any failure of a user's module is theirs: say which and why

@@ -94,16 +94,26 @@ class Unit:
 # ----------------------------------------------------------------------------- planning
 def run_task(run: Run):
     """The `TaskSpec` a run trained on, made as its config says (`env_kwargs`, `env_module`,
-    `model_version`: `adarl.envs.tasks.task_of`)."""
+    `model_version`: `adarl.envs.tasks.task_of`); an env-module the user did not name is a
+    one-line `UsageError` naming the run (`adarl.envs.tasks.check_named`)."""
     from adarl.envs.tasks import task_of
 
+    check_run_module(run)
     return task_of(run.config)
+
+
+def check_run_module(run: Run) -> None:
+    """A one-line `UsageError` if `run` needs an env-module the user did not name."""
+    from adarl.envs.tasks import check_named
+
+    check_named(str(run.config.get("env_module") or ""), str(run.path / layout.CONFIG_FILE))
 
 
 def run_env_options(run: Run) -> dict[str, str]:
     """`make`'s keywords for a run's evaluation envs: its physics and model version, and for a
     Gymnasium id its `env_kwargs` and `env_module` where it has them (a user's XML, the package
-    that registers a user's id)."""
+    that registers a user's id, which the user must have named: `check_run_module`)."""
+    check_run_module(run)
     options = env_options(run.config)
     for key in ("env_kwargs", "env_module"):
         value = run.config.get(key) or ""

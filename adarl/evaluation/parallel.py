@@ -19,9 +19,13 @@ def run_unit(unit) -> list[dict]:
     """Run one unit's episodes; rows carry `step, seed, dynamics` in front and a column per
     physical parameter (`layout.param_column`) at the end."""
     from adarl.envs.rollout import run_episodes
+    from adarl.envs.tasks import name_env_module
     from adarl.policy import load
     from adarl.runs import layout
 
+    # a unit's env-module was named where it was planned (`evaluate.run_env_options`): this
+    # process may be a fresh worker that knows only the unit
+    name_env_module(dict(unit.env).get("env_module", ""))
     policy = load(unit.policy_path)
     rows = run_episodes(
         policy,

@@ -19,12 +19,21 @@ from adarl.runs.layout import TRUNCATIONS_CSV
 
 def intrinsic_rank(run: Run) -> int | None:
     """2·d_a+1 of the run's task (from `adarl.envs`, made as the run made it: its env_kwargs and
-    env_module; else the config), None if unknown."""
+    env_module; else, as for an env-module the user did not name, which is never imported, from
+    the action size of its final policy file; else the config), None if unknown."""
     try:
         from adarl.envs.tasks import task_of
 
         return int(task_of({**dict(run.config), "task": run.task}).intrinsic_rank)
     except (ImportError, AttributeError, KeyError, TypeError, UsageError):
+        pass
+    try:
+        from adarl.policy import load
+        from adarl.runs.checkpoints import policy_files, select_checkpoint
+
+        path = next(iter(policy_files(select_checkpoint(run.path)).values()))
+        return 2 * int(load(path).low.shape[0]) + 1
+    except (StopIteration, OSError, ValueError, KeyError):  # UsageError: a ValueError
         value = config_value(run.config, "intrinsic_rank")
         return None if value is None else int(value)
 

@@ -115,7 +115,8 @@ def load_config(run_dir: str | os.PathLike) -> dict:
 
 
 def config_from_run(run_dir: str | os.PathLike):
-    """(algo, config) a run folder was started with, checked against the algorithm registry."""
+    """(algo, config) a run folder was started with, checked against the algorithm registry
+    (`registry.config_from_record`: its env-module must be one the user named)."""
     from adarl.algos import registry
 
     values = load_config(run_dir)

@@ -269,6 +269,7 @@ class SweepRun:
                 "--attempt",
                 str(attempt),
                 *self.options.train_extra,
+                f"--env-module={unit.config.env_module}",  # the sweep file's: yours, named
                 f"--unit={json.dumps(launch.record(unit.start_in(self.out)))}",
             ],
             "log": str(self.out / "logs" / f"{unit.flat_id}.log"),

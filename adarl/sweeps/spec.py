@@ -117,12 +117,41 @@ def resolve(spec: str) -> Path:
     )
 
 
-def load(spec: str) -> Sweep:
-    """Read, check and expand a sweep file or preset name; a one-line UsageError on bad input."""
+def load(spec: str, run: bool = False) -> Sweep:
+    """Read, check and expand a sweep file or preset name; a one-line UsageError on bad input.
+    `run`: the sweep is to run (not `--dry-run`), so the env-modules the file names, which the
+    user gave on the command line with it, may be imported; otherwise only those named with
+    `--env-module` (`adarl.envs.tasks.name_env_module`)."""
+    from adarl.envs.tasks import check_named, name_env_module
+
     path = resolve(spec)
     doc = read_yaml(path)
     source = spec if path.parent == PRESET_DIR and not Path(spec).is_file() else str(path)
+    for module in env_modules(doc):
+        if not run:
+            check_named(module, source)
+            continue
+        try:
+            name_env_module(module)
+        except UsageError as exc:
+            raise UsageError(f"{source}: {exc}") from None
     return parse(doc, source=source, default_name=path.stem)
+
+
+def env_modules(doc) -> list[str]:
+    """Every `env_module` a sweep file's YAML names (in its overrides, a task's, an entry's or a
+    grid's), as text."""
+    found: list[str] = []
+    if isinstance(doc, dict):
+        for key, value in doc.items():
+            if key == "env_module":
+                found += [str(v) for v in (value if isinstance(value, list) else [value]) if v]
+            else:
+                found += env_modules(value)
+    elif isinstance(doc, list):
+        for value in doc:
+            found += env_modules(value)
+    return found
 
 
 # ----------------------------------------------------------------------------- parsing

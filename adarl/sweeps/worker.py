@@ -1,11 +1,12 @@
 """One attempt at one sweep unit, as its own process:
 
     python -m adarl.sweeps.worker --run-dir RUN --lock LOCK --marker MARKER --attempt K \
-        [--parent PID] [--track --wandb-group G ...] --unit UNIT_JSON
+        [--parent PID] [--track --wandb-group G ...] [--env-module PKG] --unit UNIT_JSON
 
 UNIT_JSON is what the unit trains, as `adarl train` takes it (`adarl.train.launch.record`):
 `{"algo", "preset", "flags"}`, or for a fork `{"fork": {"from", "at", "changes"}}`, the parent
-being its run folder (`Unit.start_in`). The worker dies with the process that
+being its run folder (`Unit.start_in`); PKG is the env-module the sweep file names, which
+the unit may import (a run folder alone never makes adarl import one). The worker dies with the process that
 started it (Linux), holds the unit's lock file while it trains (so two processes can never train
 into the same run folder), then decides, under the lock, what the attempt does: nothing if the run
 is DONE, resume RUN if it has a complete checkpoint, and otherwise start it from scratch (removing
@@ -44,6 +45,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--attempt", type=int, required=True)
     parser.add_argument("--parent", type=int, default=None)
     parser.add_argument("--unit", required=True, type=json.loads, help="see launch.record")
+    parser.add_argument(
+        "--env-module", default="", help="the module the sweep file names, which it may import"
+    )
     parser.add_argument("--track", action="store_true", help="as adarl train --track")
     parser.add_argument("--wandb-project", default=None)
     parser.add_argument("--wandb-entity", default=None)
@@ -93,8 +97,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     if mode == "done":
         return 0
+    from adarl.envs.tasks import name_env_module
     from adarl.train import launch
 
+    name_env_module(args.env_module)
     tracking = launch.Tracking(args.track, args.wandb_project, args.wandb_entity, args.wandb_group)
     start = launch.Resume(str(run_dir)) if mode == "resume" else launch.from_record(args.unit)
     out = [] if mode == "resume" else ["--out", str(run_dir)]

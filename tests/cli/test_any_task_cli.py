@@ -77,7 +77,7 @@ def test_the_resume_of_an_env_whose_state_cannot_be_captured_is_refused(tmp_path
     assert adarl(*flags).returncode == 0
     (run / "DONE").unlink()  # as if it had been killed after its last checkpoint
     before = sorted(p.name for p in run.rglob("*"))
-    done = adarl("train", "--resume", str(run))
+    done = adarl("train", "--resume", str(run), "--env-module", "user_env")
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "cannot resume this run exactly" in done.stderr and "Drift" in done.stderr
     assert sorted(p.name for p in run.rglob("*")) == before

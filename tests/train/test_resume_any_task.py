@@ -142,12 +142,16 @@ def test_a_users_own_xml_trains_varies_and_resumes_after_sigkill_from_the_cli(tm
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not (tmp_path / "killed" / "DONE").exists()
-    # without the module that registers it, the resume says what is missing, in one line
-    cmd, _ = _cli("train", "--resume", str(tmp_path / "killed"))
-    bare = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
-    assert bare.returncode == 2 and len(bare.stderr.strip().splitlines()) == 1, bare.stderr
-    assert "user_env" in bare.stderr
-    cmd, env = _cli("train", "--resume", str(tmp_path / "killed"), "--no-progress")
+    # the run names the module that registers it, which adarl imports only when the user
+    # names it too (issue 61): without, the resume says so in one line; without the module on
+    # the path, too
+    for named, environ in (([], env), (["--env-module", "user_env"], dict(os.environ))):
+        cmd, _ = _cli("train", "--resume", str(tmp_path / "killed"), *named)
+        bare = subprocess.run(cmd, capture_output=True, text=True, env=environ)
+        assert bare.returncode == 2 and len(bare.stderr.strip().splitlines()) == 1, bare.stderr
+        assert "user_env" in bare.stderr
+    cmd, env = _cli("train", "--resume", str(tmp_path / "killed"), "--env-module", "user_env")
+    cmd.append("--no-progress")
     resumed = subprocess.run(cmd, env=env, capture_output=True, text=True)
     assert resumed.returncode == 0, resumed.stderr
     assert_same_run(tmp_path / "full", tmp_path / "killed", "adarl")
