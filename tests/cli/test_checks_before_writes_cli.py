@@ -90,3 +90,19 @@ def test_what_only_building_the_model_finds_is_found_before_writing(tmp_path, ca
     argv += ["--env-kwargs", f"xml_file={xml}", "--dynamics", "fixed:geom:arm.size[1]=0.2"]
     one_line_exit_2([*argv, *TINY, "--out", str(out)], capsys, "is set by its fromto")
     assert not out.exists()
+
+
+def test_a_fork_checks_its_evaluation_dynamics_before_its_folder_exists(tmp_path, capsys):
+    from adarl.algos import sac_config
+    from adarl.algos.sac_config import SAC_FAMILY
+    from adarl.train import trainers
+
+    values = {**SAC_FAMILY["sac"], **sac_config.PRESETS["smoke"], "algo": "sac", "task": "hopper"}
+    fields = {"seeds": (0,), "total_steps": 400, "checkpoint_every": 200, "keep_checkpoints": 0}
+    parent = tmp_path / "parent"
+    trainers.train(sac_config.SACConfig(**{**values, **fields}), parent, progress=False)
+    out = tmp_path / "fork"
+    for bad in ("fixed:body:world.mass=5", "fixed:body:torso.mass=5,body:torso.mass[0]=6"):
+        argv = ["train", "--fork", str(parent), "--at", "200", "--eval-dynamics", bad]
+        one_line_exit_2([*argv, "--out", str(out)], capsys, "body:")
+        assert not out.exists()

@@ -24,7 +24,7 @@ import adarl
 from adarl.cli.main import main
 from adarl.envs import tasks
 
-REPO = Path(__file__).resolve().parents[2]
+ADARL_ROOT = Path(adarl.__file__).resolve().parents[1]  # the adarl these tests import
 #: what the downloaded run's module does when imported: leaves a mark
 PAYLOAD = 'from pathlib import Path\nPath(__file__).with_name("RAN").write_text("ran")\n'
 ASK = "names env-module 'dlrun.payload', which you did not name"
@@ -133,7 +133,7 @@ def test_a_named_module_is_imported_as_python_m_finds_it(tmp_path):
     script.write_text(  # as pip writes the `adarl` script
         "import sys\nfrom adarl.cli.main import main\nif __name__ == '__main__':\n    sys.exit(main())\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    env = {**os.environ, "PYTHONPATH": str(ADARL_ROOT)}
     argv = ["evaluate", "dlrun", "--episodes", "1", "--max-episode-steps", "3", "--workers", "2"]
     done = subprocess.run(
         [sys.executable, str(script), *argv, "--env-module", "dlrun.payload"],
