@@ -101,6 +101,7 @@ def test_a_fork_checks_its_evaluation_dynamics_before_its_folder_exists(tmp_path
     fields = {"seeds": (0,), "total_steps": 400, "checkpoint_every": 200, "keep_checkpoints": 0}
     parent = tmp_path / "parent"
     trainers.train(sac_config.SACConfig(**{**values, **fields}), parent, progress=False)
+    capsys.readouterr()  # the parent's own start line and budget warning
     out = tmp_path / "fork"
     for bad in ("fixed:body:world.mass=5", "fixed:body:torso.mass=5,body:torso.mass[0]=6"):
         argv = ["train", "--fork", str(parent), "--at", "200", "--eval-dynamics", bad]
