@@ -134,7 +134,7 @@ def rnac_learning_rate(config, step: int) -> float:
 
 
 # ============================================================================ the budget, in words
-#: A warm-up of at least this share of the budget is "mostly random" (said plainly, issue 62).
+#: A warm-up of more than this share of the budget is "mostly random" (said plainly, issue 62).
 MOSTLY_RANDOM = 0.5
 
 
@@ -186,7 +186,7 @@ def budget_words(config) -> tuple[list[str], list[str]]:
                 f"all random: start-steps {start:,} ≥ total-steps {total:,}: every step takes "
                 "uniform random actions and the policy never acts; give a smaller --start-steps"
             )
-        elif start >= MOSTLY_RANDOM * total:
+        elif start > MOSTLY_RANDOM * total:
             warnings.append(
                 f"mostly random: the first {start:,} of {total:,} steps ({start / total:.0%}) take "
                 f"uniform random actions (start-steps); the policy acts in only {total - start:,}"

@@ -304,12 +304,10 @@ def xml_path(spec) -> str:
 
 
 def _frequency(schedule: DynamicsSchedule) -> float:
-    """The frequency a range takes by default: the schedule's first sinusoid's, else 0.5 (on a
-    task outside the paper's four: its generic schedule's, whichever sinusoids a range dropped)."""
-    if not schedule.spec.paper:
-        first = next(iter(schedule.spec.schedules.get("paper", {}).values()), None)
-    else:
-        first = next(iter(schedule.sinusoids.values()), None)
+    """The frequency a range takes by default: the schedule's first sinusoid's, else 0.5 (a range
+    is read before the generic sinusoids it replaces are dropped, so on a task outside the
+    paper's four a spec's range takes the generic schedule's 0.5)."""
+    first = next(iter(schedule.sinusoids.values()), None)
     return first.frequency if first is not None else 0.5
 
 

@@ -148,13 +148,15 @@ def check_logged_physics(run_dir: str | os.PathLike, task: str, dynamics: str) -
     path = Path(run_dir) / layout.EPISODES_CSV
     if not path.is_file():
         return
-    varying = set(parse_dynamics(dynamics, task).sinusoids)
     seen: dict[str, set[str]] = {}
     with path.open(newline="") as f:
         for row in csv.DictReader(f):
             for column, value in row.items():
                 if column and column.startswith(layout.PARAM_PREFIX) and value not in ("", None):
                     seen.setdefault(column, set()).add(value)
+    if not seen:  # no physics logged (a plain env, or no episode yet): nothing to compare
+        return
+    varying = set(parse_dynamics(dynamics, task).sinusoids)
     for column, values in seen.items():
         name = column.removeprefix(layout.PARAM_PREFIX)
         if name not in varying and len(values) > 1:
