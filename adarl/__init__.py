@@ -60,3 +60,8 @@ def __getattr__(name):
 
         return UsageError
     raise AttributeError(f"module 'adarl' has no attribute {name!r}")
+
+
+def __dir__():
+    """The module's names and the lazily imported API's (`dir(adarl)`, completion)."""
+    return sorted({*globals(), "train", "UsageError", *_API})

@@ -88,7 +88,17 @@ def train(
     field as a keyword (`total_steps=`, `dynamics=`, `env_kwargs=`, `truncate_every=`, ...; see
     `adarl train --algo ALGO --help`). `resume=RUN_DIR` continues a run exactly (give `env_fn`
     again if it was trained with one, and `env_module=` if a module of yours registers its
-    task: adarl imports no module a run folder names; nothing else). Returns the `Run`."""
+    task: adarl imports no module a run folder names; nothing else). Returns the `Run`.
+
+    The process gets the CLI's XLA settings (one device per core, single-threaded computations)
+    when JAX is not imported yet, so a run started here resumes from the CLI and the reverse;
+    with JAX already imported under other settings, such a resume names the difference."""
+    import sys
+
+    if "jax" not in sys.modules:
+        from adarl.runtime import configure_xla
+
+        configure_xla()
     from adarl.envs.tasks import name_env_module
     from adarl.runs import folder
     from adarl.train import launch
@@ -141,23 +151,24 @@ def register_env_fn(env_fn: Callable, env_name: str | None = None) -> str:
     return env_id
 
 
-def load_policy(run_dir: str | Path, seed: int = 0, step: int | None = None):
-    """The NumPy policy of `seed` at the final checkpoint of `run_dir` (or at `step`): call it
-    on an observation for the deterministic action (`adarl.policy.NumpyPolicy`)."""
+def load_policy(run_dir: Run | str | Path, seed: int = 0, step: int | None = None):
+    """The NumPy policy of `seed` at the final checkpoint of `run_dir` (a `Run` or its folder;
+    or at `step`): call it on an observation for the deterministic action
+    (`adarl.policy.NumpyPolicy`)."""
     from adarl import policy
     from adarl.runs import checkpoints
 
-    return policy.load(checkpoints.policy_file(Path(run_dir), seed, step))
+    return policy.load(checkpoints.policy_file(_path(run_dir), seed, step))
 
 
-def evaluate(runs: str | Path | Sequence[str | Path], **options) -> int:
+def evaluate(runs: Run | str | Path | Sequence[Run | str | Path], **options) -> int:
     """`adarl evaluate RUNS` with `options` as its flags (`sweep="mass_scale=0.8..1.2:5"`,
     `suite="paper"`, `episodes=5`, `dynamics=...`, `env_module="myrobots"` for a run of a
     Gymnasium id a module of yours registers); writes what the command writes."""
     return _cli("evaluate", _paths(runs), options)
 
 
-def report(runs: str | Path | Sequence[str | Path], out: str | Path, **options) -> Path:
+def report(runs: Run | str | Path | Sequence[Run | str | Path], out: str | Path, **options) -> Path:
     """`adarl report RUNS --out OUT` with `options` as its flags; returns OUT."""
     _cli("report", _paths(runs), {"out": str(out), **options})
     return Path(out)
@@ -190,8 +201,16 @@ def _seeds(seeds) -> str:
     return ",".join(map(str, seeds))
 
 
+def _path(run) -> Path:
+    """A run's folder, from a `Run` or a path."""
+    return run.path if isinstance(run, Run) else Path(run)
+
+
 def _paths(runs) -> list[str]:
-    return [str(runs)] if isinstance(runs, str | Path) else [str(r) for r in runs]
+    """Run folders from a `Run`, a path, or a sequence of them."""
+    if isinstance(runs, Run | str | Path):
+        runs = [runs]
+    return [str(_path(r)) for r in runs]
 
 
 def _command(what: str) -> str:

@@ -72,3 +72,43 @@ def test_resuming_with_another_env_fn_is_refused(tmp_path, registered):
         adarl.train(env_fn=other_robot, env_name="OtherBot", resume=path)
     assert "adarl-fn/OtherBot-v0" in str(info.value) and "\n" not in str(info.value)
     assert sorted(p.relative_to(path) for p in path.rglob("*")) == before
+
+
+def test_every_function_that_takes_a_run_takes_the_run_train_returned(tmp_path, monkeypatch):
+    # issue 63: passing the Run that train returned to load_policy, evaluate or report was a
+    # TypeError ("expected str ... not Run", "'Run' object is not iterable")
+    path = synthetic_runs.write_run(tmp_path, "run", algo="sac", seeds=(0, 1))
+    run = Run(path, "sac", None)
+    obs = np.linspace(-1, 1, synthetic_runs.DIMS["hopper"][0])
+    np.testing.assert_array_equal(adarl.load_policy(run, seed=1)(obs), adarl.load_policy(path, seed=1)(obs))  # fmt: skip
+    import adarl.api as api
+
+    seen = []
+    monkeypatch.setattr(api, "_cli", lambda command, positional, options: seen.append(positional) or 0)  # fmt: skip
+    adarl.evaluate(run)
+    adarl.evaluate([run, str(path)])
+    adarl.report(run, out=tmp_path / "r")
+    assert seen == [[str(path)], [str(path), str(path)], [str(path)]]
+
+
+def test_dir_shows_the_api():
+    assert {"train", "evaluate", "report", "load_policy", "Run", "UsageError"} <= set(dir(adarl))
+
+
+def test_train_from_python_gives_the_process_the_clis_xla_settings(tmp_path):
+    # issue 61 §8 / 63: the CLI set XLA_FLAGS and adarl.train() did not, so a run started from one
+    # door was refused on resume by the other; a bad call still sets them before any JAX import
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import os, sys, adarl\n"
+        "try:\n    adarl.train(algo='nope', task='hopper')\nexcept adarl.UsageError:\n    pass\n"
+        "from adarl.runtime import xla_flags\n"
+        "assert 'jax' not in sys.modules or os.environ['XLA_FLAGS'], 'jax imported first'\n"
+        "print(os.environ.get('XLA_FLAGS') == ' '.join(xla_flags()))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+    assert done.stdout.strip() == "True", done.stderr
