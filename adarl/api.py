@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from adarl.errors import UsageError
+from adarl.errors import Stopped, UsageError
 
 #: The Gymnasium namespace `env_fn` envs are registered under.
 FN_NAMESPACE = "adarl-fn"
@@ -120,7 +120,7 @@ def train(
             raise UsageError(f"resume continues a run with its own settings; drop {given[0]}")
         if env_fn is not None:
             _trained_with(Path(resume), task)
-        run_dir = launch.train(launch.Resume(str(resume)), None, _command("resume"), progress)
+        start, out = launch.Resume(str(resume)), None
     else:
         flags = dict(config_fields)
         if task is not None:
@@ -128,7 +128,13 @@ def train(
         flags["seeds"] = _seeds(seeds)
         start = launch.New(algo, preset, flags)
         start.config()  # every check before anything is written
-        run_dir = launch.train(start, out, _command(algo), progress)
+    try:
+        run_dir = launch.train(start, out, _command("resume" if resume else algo), progress)
+    except Stopped as stopped:  # its hint names the call that resumes it from here
+        keywords = ["env_fn=<the same env_fn>"] if env_fn is not None else []
+        if config_fields.get("env_module"):
+            keywords.append(f"env_module={config_fields['env_module']!r}")
+        raise stopped.resume_from_python(*keywords) from None
     algo_back, config = folder.config_from_run(run_dir)
     return Run(Path(run_dir), algo_back, config)
 

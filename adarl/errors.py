@@ -52,6 +52,15 @@ class Stopped(RunFailed):
         )
         self.exit_code = 128 + signum
         self.step = step
+        self.run_dir = run_dir
+
+    def resume_from_python(self, *keywords: str) -> "Stopped":
+        """This stop, its hint naming the Python call that resumes it (`adarl.train(resume=…)`
+        with `keywords` beside it) instead of the CLI command."""
+        head = str(self).split("; resume with:")[0]
+        call = ", ".join([f"resume={str(self.run_dir)!r}", *keywords])
+        self.args = (f"{head}; resume with: adarl.train({call})",)
+        return self
 
 
 #: What a command catches and reports as one line (`failure`); anything else is a bug and shows

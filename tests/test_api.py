@@ -112,3 +112,21 @@ def test_train_from_python_gives_the_process_the_clis_xla_settings(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
     assert done.stdout.strip() == "True", done.stderr
+
+
+def test_a_run_stopped_from_python_names_the_python_call_that_resumes_it(tmp_path, monkeypatch):
+    # issue 61 §8: the Stopped hint named `adarl train --resume`, which the CLI refuses for an
+    # env_fn run; from Python it names adarl.train(resume=...)
+    import adarl.train.launch as launch
+    from adarl.errors import Stopped
+
+    def stopped(start, out, command, progress):
+        raise Stopped(2, 1_500, tmp_path / "run")
+
+    monkeypatch.setattr(launch, "train", stopped)
+    with pytest.raises(Stopped) as caught:
+        adarl.train(algo="sac", task="hopper", out=tmp_path / "run", total_steps=2_000)
+    message = str(caught.value)
+    assert message.startswith("stopped by SIGINT at step 1,500 with a checkpoint there")
+    assert message.endswith(f"resume with: adarl.train(resume={str(tmp_path / 'run')!r})")
+    assert "adarl train --resume" not in message and caught.value.exit_code == 130
