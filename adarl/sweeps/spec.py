@@ -230,8 +230,24 @@ def parse(doc, source: str = "<spec>", default_name: str = "sweep") -> Sweep:
                         envs,
                     )
                 )
+    _check_distinct_folders(units, where)
     units = _forks(units, entries, where)
     return Sweep(name=name, source=source, units=tuple(units), cpus_per_unit=int(cpus))
+
+
+def _check_distinct_folders(units: list[Unit], where: str) -> None:
+    """A one-line UsageError when two units would train into one folder (two tasks whose names
+    map to one folder name, `rel6/Bot-v0` and `rel6__Bot-v0`): the second would never train
+    and be reported done, with the first's rows under its name (issue 61 §7)."""
+    seen: dict[str, Unit] = {}
+    for unit in units:
+        first = seen.setdefault(unit.id, unit)
+        if first is not unit:
+            raise UsageError(
+                f"{where}: tasks {first.task!r} and {unit.task!r} would train into one unit folder "
+                f"{unit.id!r}; allowed: task names that stay apart once '/' becomes '__' (rename "
+                "one, or register it under another id)"
+            )
 
 
 def _forks(units: list[Unit], entries: list[dict], where: str) -> list[Unit]:

@@ -340,3 +340,28 @@ def test_the_device_backend_refuses_a_gymnasium_id_in_one_line():
         "t.yaml: HalfCheetah-v5/sac/seeds-0-1: unknown task for --backend device "
         "'HalfCheetah-v5'; allowed: hopper, walker2d, ant, humanoid"
     )
+
+
+def test_two_tasks_that_map_to_one_unit_folder_are_refused():
+    # issue 61 §7: `rel6/Bot-v0` and `rel6__Bot-v0` both train into `rel6__Bot-v0/...`; the
+    # second was never trained but reported done, the manifest naming the wrong task
+    from types import SimpleNamespace
+
+    from adarl.errors import UsageError
+    from adarl.sweeps import spec as sweep_spec
+
+    def unit(task):
+        return SimpleNamespace(task=task, id=f"{task.replace('/', '__')}/sac/seeds-0")
+
+    sweep_spec._check_distinct_folders([unit("rel6/Bot-v0"), unit("hopper")], "f.yaml")
+    with pytest.raises(UsageError, match="tasks 'rel6/Bot-v0' and 'rel6__Bot-v0' would train into one unit folder 'rel6__Bot-v0/sac/seeds-0'"):  # fmt: skip
+        sweep_spec._check_distinct_folders([unit("rel6/Bot-v0"), unit("rel6__Bot-v0")], "f.yaml")
+
+
+def test_every_sweep_checks_its_unit_folders_are_distinct(monkeypatch):
+    from adarl.sweeps import spec as sweep_spec
+
+    calls = []
+    monkeypatch.setattr(sweep_spec, "_check_distinct_folders", lambda units, where: calls.append(len(units)))  # fmt: skip
+    sweep_spec.load("smoke")
+    assert calls and calls[0] > 0
