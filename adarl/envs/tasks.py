@@ -270,7 +270,7 @@ def parse_env_kwargs(text) -> dict[str, object]:
     """`k=v,k=v` (each value read as YAML: numbers, booleans, text) or a JSON object, or a dict,
     -> a dict; a one-line `UsageError` otherwise."""
     if isinstance(text, dict):
-        return dict(text)
+        return _checked_kwargs(dict(text), repr(text))
     text = (text or "").strip()
     if not text:
         return {}
@@ -281,7 +281,7 @@ def parse_env_kwargs(text) -> dict[str, object]:
             value = None
         if not isinstance(value, dict):
             raise UsageError(f"bad env-kwargs {text!r}; allowed: a JSON object or k=v,k=v")
-        return value
+        return _checked_kwargs(value, repr(text))
     import yaml
 
     out = {}
@@ -292,8 +292,28 @@ def parse_env_kwargs(text) -> dict[str, object]:
                 f"malformed env-kwargs {text!r} (at {item.strip()!r}); allowed: k=v[,k=v...] "
                 "with k a keyword of the env's class, or a JSON object"
             )
-        out[key] = yaml.safe_load(value) if value else ""
-    return out
+        try:  # safe_load builds plain values only: a python/ tag is an error, never run
+            out[key] = yaml.safe_load(value) if value else ""
+        except yaml.YAMLError:
+            raise UsageError(
+                f"bad env-kwargs value {key}={value!r}; allowed: a number, true/false, or text "
+                "(JSON for lists: a JSON object of all the keywords)"
+            ) from None
+    return _checked_kwargs(out, repr(text))
+
+
+def _checked_kwargs(kwargs: dict, text: str) -> dict:
+    """`kwargs` with every float finite and an `xml_file` that names a regular file (a FIFO
+    would block the first read for ever), or a one-line UsageError (issue 61 §6, §7)."""
+    for key, value in kwargs.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise UsageError(f"bad env-kwargs {key}={value!r} in {text}; allowed: a finite number")
+        if key == "xml_file" and isinstance(value, str) and os.path.exists(value):
+            if not os.path.isfile(value):
+                raise UsageError(
+                    f"env-kwargs xml_file={value!r} is not a regular file; allowed: an XML file"
+                )
+    return kwargs
 
 
 def kwargs_text(env_kwargs) -> str:

@@ -1,0 +1,44 @@
+"""`--env-kwargs` as adarl reads it (`adarl.envs.tasks.parse_env_kwargs`): values YAML will not
+build, non-finite numbers and an `xml_file` that is not a regular file are one-line errors
+before anything is made or written (issue 61 §6, §7); plain values still read as before."""
+
+import os
+
+import pytest
+
+from adarl.envs.tasks import parse_env_kwargs
+from adarl.errors import UsageError
+
+
+def test_plain_values_read_as_yaml_and_json():
+    assert parse_env_kwargs("frame_skip=5,reset_noise_scale=0.1,xml_file=a.xml") == {
+        "frame_skip": 5, "reset_noise_scale": 0.1, "xml_file": "a.xml"
+    }  # fmt: skip
+    assert parse_env_kwargs('{"frame_skip": 5}') == {"frame_skip": 5}
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["x=!!python/object/apply:os.system [echo pwned]", "frame_skip=[1", "a=!!binary x"],
+)
+def test_values_yaml_will_not_build_are_one_line_errors(text):
+    with pytest.raises(UsageError, match="bad env-kwargs value"):
+        parse_env_kwargs(text)
+
+
+@pytest.mark.parametrize("text", ["reset_noise_scale=.nan", "reset_noise_scale=.inf", '{"a": NaN}'])
+def test_non_finite_numbers_are_refused(text):
+    with pytest.raises(UsageError, match="allowed: a finite number"):
+        parse_env_kwargs(text)
+
+
+def test_an_xml_file_that_is_not_a_regular_file_is_refused(tmp_path):
+    fifo = tmp_path / "robot.xml"
+    os.mkfifo(fifo)
+    with pytest.raises(UsageError, match="is not a regular file"):
+        parse_env_kwargs(f"xml_file={fifo}")
+    with pytest.raises(UsageError, match="is not a regular file"):
+        parse_env_kwargs({"xml_file": str(tmp_path)})  # a folder
+    regular = tmp_path / "ok.xml"
+    regular.write_text("<mujoco/>")
+    assert parse_env_kwargs(f"xml_file={regular}") == {"xml_file": str(regular)}
