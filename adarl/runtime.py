@@ -56,7 +56,27 @@ def check_process_environment(command: str) -> None:
     if command in MUJOCO_COMMANDS:
         check_mujoco_gl()
     if command in JAX_COMMANDS:
+        check_jax_booleans()
         check_jax_backend()
+
+
+#: the words JAX reads a boolean environment variable from (its `config.bool_env`)
+_JAX_TRUE = ("y", "yes", "t", "true", "on", "1")
+_JAX_FALSE = ("n", "no", "f", "false", "off", "0")
+
+
+def check_jax_booleans() -> None:
+    """A one-line UsageError if JAX_ENABLE_X64 (or JAX_DEBUG_NANS) is set to a word JAX cannot
+    read as true or false: JAX raises a ValueError with a traceback when it starts."""
+    from adarl.errors import UsageError
+
+    for name in ("JAX_ENABLE_X64", "JAX_DEBUG_NANS"):
+        value = os.environ.get(name)
+        if value is not None and value.lower() not in _JAX_TRUE + _JAX_FALSE:
+            raise UsageError(
+                f"{name}={value!r} is not a truth value JAX reads; allowed: "
+                f"{', '.join(_JAX_TRUE)} or {', '.join(_JAX_FALSE)} (or unset it)"
+            )
 
 
 def check_mujoco_gl() -> None:

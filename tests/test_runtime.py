@@ -2,6 +2,8 @@
 
 import os
 
+import pytest
+
 from adarl.runtime import with_xla_flags, xla_flags
 
 
@@ -96,3 +98,29 @@ def test_a_backend_jax_cannot_start_is_one_line_before_the_run_folder(
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and needle in err and "JAX cannot start" in err, err
         assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["JAX_ENABLE_X64", "JAX_DEBUG_NANS"])
+def test_a_jax_boolean_jax_cannot_read_is_one_line_before_anything_is_written(name, monkeypatch, tmp_path):  # fmt: skip
+    # issue 61 §6: JAX_ENABLE_X64=maybe was a ValueError traceback from inside JAX
+    import subprocess
+    import sys
+
+    from adarl.errors import UsageError
+    from adarl.runtime import check_process_environment
+
+    monkeypatch.setenv(name, "maybe")
+    with pytest.raises(UsageError, match=f"{name}='maybe' is not a truth value JAX reads"):
+        check_process_environment("train")
+    for word in ("0", "False", "on"):
+        monkeypatch.setenv(name, word)
+        check_process_environment("train")  # JAX's own words pass
+    env = {**os.environ, name: "maybe"}
+    out = tmp_path / "run"
+    done = subprocess.run(
+        [sys.executable, "-m", "adarl.cli.main", "train", "--algo", "sac", "--task", "hopper",
+         "--total-steps", "500", "--out", str(out)],
+        env=env, capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not out.exists()
