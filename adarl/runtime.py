@@ -46,6 +46,8 @@ def configure_xla(cpus: int | None = None) -> None:
 #: MUJOCO_GL values MuJoCo accepts by platform, besides glfw and the on/off words (its check:
 #: mujoco/rendering/classic/gl_context.py)
 _MUJOCO_GL_PLATFORM = {"linux": ("glx", "egl", "osmesa"), "win32": ("wgl",), "darwin": ("cgl",)}
+#: the library each software/headless backend loads when MuJoCo is imported, and its package
+_MUJOCO_GL_LIBRARY = {"osmesa": ("OSMesa", "libosmesa6"), "egl": ("EGL", "libegl1")}
 #: commands that build MuJoCo environments, and those that start JAX (train, and sweeps' workers)
 MUJOCO_COMMANDS = ("train", "evaluate", "play", "sweep", "tasks")
 JAX_COMMANDS = ("train", "sweep")
@@ -99,6 +101,15 @@ def check_mujoco_gl() -> None:
             f"MUJOCO_GL={value!r} is not a MuJoCo rendering backend; allowed: "
             f"{', '.join(names)} (or unset it)"
         )
+    library, package = _MUJOCO_GL_LIBRARY.get(value.lower().strip(), (None, None))
+    if library is not None:
+        import ctypes.util
+
+        if ctypes.util.find_library(library) is None:  # `import mujoco` would fail, a traceback
+            raise UsageError(
+                f"MUJOCO_GL={value!r} needs the lib{library} library, which this machine lacks "
+                f"(Debian/Ubuntu: {package}); allowed: install it, another backend, or unset it"
+            )
 
 
 def check_jax_backend() -> None:

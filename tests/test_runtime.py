@@ -39,11 +39,14 @@ def test_available_cores_follow_the_affinity_and_the_machine_elsewhere(monkeypat
 
 # ----------------------------------------------------------------------------- issue 38, class 5
 def test_mujoco_gl_is_checked_as_mujoco_would(monkeypatch):
+    import ctypes.util
+
     import pytest
 
     from adarl.errors import UsageError
     from adarl.runtime import check_mujoco_gl
 
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: f"lib{name}.so.1")
     for ok in ("egl", "OSMesa", " glfw ", "disable", "0", ""):
         monkeypatch.setenv("MUJOCO_GL", ok)
         check_mujoco_gl()
@@ -124,3 +127,20 @@ def test_a_jax_boolean_jax_cannot_read_is_one_line_before_anything_is_written(na
     )  # fmt: skip
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("backend", "library"), [("osmesa", "OSMesa"), ("egl", "EGL")])
+def test_a_backend_whose_library_is_missing_is_one_line(backend, library, monkeypatch):
+    # issue 61 §6: MUJOCO_GL=osmesa without libOSMesa was an ImportError traceback at `import
+    # mujoco`, in every command that builds an env
+    import ctypes.util
+
+    from adarl.errors import UsageError
+    from adarl.runtime import check_mujoco_gl
+
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: None if name == library else "x")
+    monkeypatch.setenv("MUJOCO_GL", backend)
+    with pytest.raises(UsageError, match=f"MUJOCO_GL='{backend}' needs the lib{library} library"):
+        check_mujoco_gl()
+    monkeypatch.setenv("MUJOCO_GL", "glfw")  # loads nothing at import
+    check_mujoco_gl()
