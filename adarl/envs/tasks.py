@@ -371,6 +371,11 @@ def import_env_module(module: str) -> None:
         sys.path.insert(0, cwd)  # as `python -m` has it (the `adarl` script has its own folder)
     try:
         importlib.import_module(module)
+    except SystemExit as exc:  # a module that exits as it is imported: say so, do not exit 0
+        raise UsageError(
+            f"env-module {module!r} called sys.exit({exc.code!r}) as it was imported; allowed: a "
+            "module that registers its Gymnasium ids and returns"
+        ) from None
     except Exception as exc:  # any failure of a user's module is theirs: say which and why
         raise UsageError(f"cannot import env-module {module!r}: {exc!r}".splitlines()[0]) from None
 

@@ -142,3 +142,14 @@ def test_a_named_module_is_imported_as_python_m_finds_it(tmp_path):
     assert done.returncode == 0, done.stderr
     assert (run / "RAN").exists()
     assert (run / "evaluations" / "nominal.csv").exists()
+
+
+@pytest.mark.parametrize("argv", [["train", "--algo", "sac", "--task", "quits/Bot-v0"], ["tasks", "quits/Bot-v0"]])  # fmt: skip
+def test_a_module_that_exits_as_it_is_imported_is_one_line_not_a_silent_exit_0(argv, tmp_path, capsys):  # fmt: skip
+    # issue 61 §7: an --env-module whose import called sys.exit(0) made `adarl train` (and
+    # `sweep --dry-run`) exit 0 with no output and no work
+    (tmp_path / "quits.py").write_text("import sys\nsys.exit(0)\n")
+    out = tmp_path / "run"
+    extra = ["--out", str(out), "--total-steps", "500"] if argv[0] == "train" else []
+    one_line_exit_2([*argv, "--env-module", "quits", *extra], capsys, "env-module 'quits' called sys.exit(0)")  # fmt: skip
+    assert not out.exists()
