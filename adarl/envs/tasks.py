@@ -393,12 +393,12 @@ def make_raw_env(spec: TaskSpec, render_mode: str | None = None):
     kwargs = dict(gym_spec.kwargs) | dict(spec.env_kwargs)
     if render_mode is not None:
         kwargs["render_mode"] = render_mode
-    creator = (
-        load_env_creator(gym_spec.entry_point)
-        if isinstance(gym_spec.entry_point, str)
-        else gym_spec.entry_point
-    )
-    try:
+    try:  # loading the entry point imports its module (a missing dependency fails here)
+        creator = (
+            load_env_creator(gym_spec.entry_point)
+            if isinstance(gym_spec.entry_point, str)
+            else gym_spec.entry_point
+        )
         raw = creator(**kwargs)
     except TypeError as exc:
         raise UsageError(
@@ -409,6 +409,11 @@ def make_raw_env(spec: TaskSpec, render_mode: str | None = None):
     except Exception as exc:  # a missing dependency, a bad XML: the env's own message, one line
         message = f"{type(exc).__name__}: {exc}".splitlines()[0]
         raise UsageError(f"cannot make env {spec.gym_id!r} ({message})") from None
+    if not isinstance(raw, gymnasium.Env):
+        raise UsageError(
+            f"the entry point of {spec.gym_id!r} returned {raw!r:.60} ({type(raw).__name__}), not "
+            "a Gymnasium env; allowed: a callable that returns a gymnasium.Env"
+        )
     return getattr(raw, "unwrapped", raw)
 
 

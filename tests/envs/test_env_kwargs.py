@@ -42,3 +42,35 @@ def test_an_xml_file_that_is_not_a_regular_file_is_refused(tmp_path):
     regular = tmp_path / "ok.xml"
     regular.write_text("<mujoco/>")
     assert parse_env_kwargs(f"xml_file={regular}") == {"xml_file": str(regular)}
+
+
+def _returns_42(**kwargs):
+    return 42
+
+
+def _needs_a_missing_package(**kwargs):
+    raise ImportError("No module named 'box2d_that_is_not_installed'")
+
+
+@pytest.mark.parametrize(
+    ("entry_point", "needle"),
+    [
+        (_returns_42, r"returned 42 \(int\), not a Gymnasium env"),
+        (_needs_a_missing_package, "cannot make env .*ImportError: No module named"),
+        ("no_such_package_xyz.envs:Env", "cannot make env .*ModuleNotFoundError"),
+    ],
+)
+def test_an_env_that_cannot_be_made_is_one_line_naming_the_task(entry_point, needle):
+    # issue 61 §6: a missing dependency (CarRacing-v3 without Box2D), a missing entry point
+    # and an entry point that is not an env were tracebacks
+    import gymnasium
+
+    from adarl.envs.tasks import get_task
+
+    env_id = "adarltest/Broken-v0"
+    gymnasium.register(env_id, entry_point=entry_point)
+    try:
+        with pytest.raises(UsageError, match=needle):
+            get_task(env_id, env_kwargs={"x": 1})
+    finally:
+        del gymnasium.registry[env_id]
