@@ -308,6 +308,11 @@ def _checked_kwargs(kwargs: dict, text: str) -> dict:
     for key, value in kwargs.items():
         if isinstance(value, float) and not math.isfinite(value):
             raise UsageError(f"bad env-kwargs {key}={value!r} in {text}; allowed: a finite number")
+        if key == "render_mode":  # human opens a window mid-run (a GLFW abort on a server)
+            raise UsageError(
+                f"env-kwargs render_mode={value!r}: adarl renders only in `adarl play`; "
+                "allowed: leave render_mode out"
+            )
         if key == "xml_file" and isinstance(value, str) and os.path.exists(value):
             if not os.path.isfile(value):
                 raise UsageError(
@@ -443,6 +448,7 @@ def _gym_task(name: str, env_kwargs: str, env_module: str) -> TaskSpec:
     raw = make_raw_env(probe)
     try:
         obs_dim, act_dim = check_spaces(name, raw.observation_space, raw.action_space)
+        check_steps(name, raw, obs_dim)
         from gymnasium.envs.mujoco.mujoco_env import MujocoEnv
 
         limit = int(gym_spec.max_episode_steps or 1000)
@@ -465,6 +471,44 @@ def _gym_task(name: str, env_kwargs: str, env_module: str) -> TaskSpec:
         )
     finally:
         raw.close()
+
+
+def check_steps(name: str, raw, obs_dim: int) -> None:
+    """Reset `raw` and step it once with the middle of its action space: a one-line UsageError
+    naming the task if either raises, returns an observation of another size than its space's,
+    or a step that is not Gymnasium's (obs, reward, terminated, truncated, info) with a finite
+    reward (issue 61 §6: these were tracebacks from inside adarl, after the run folder was
+    written)."""
+    import numpy as np
+
+    def observation(value, where: str) -> None:
+        size = np.asarray(value, dtype=np.float64).size if value is not None else 0
+        if size != obs_dim:
+            raise UsageError(
+                f"task {name!r}: {where} returned an observation of {size} numbers, but its "
+                f"observation space has {obs_dim}; allowed: an env whose observations match it"
+            )
+
+    try:
+        out = raw.reset(seed=0)
+        if not (isinstance(out, tuple) and len(out) == 2):
+            raise UsageError(f"task {name!r}: reset() returned {out!r:.60}, not (obs, info)")
+        observation(out[0], "reset()")
+        space = raw.action_space
+        step = raw.step(((space.low + space.high) / 2).astype(space.dtype))
+        if not (isinstance(step, tuple) and len(step) == 5):
+            raise UsageError(
+                f"task {name!r}: step() returned {step!r:.60}, not Gymnasium's (obs, reward, "
+                "terminated, truncated, info)"
+            )
+        observation(step[0], "step()")
+        if not np.isfinite(float(step[1])):
+            raise UsageError(f"task {name!r}: step() returned the reward {step[1]!r}")
+    except UsageError:
+        raise
+    except Exception as exc:  # the env's own failure, one line
+        message = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        raise UsageError(f"task {name!r} fails when reset and stepped once ({message})") from None
 
 
 def check_spaces(name: str, obs_space, act_space) -> tuple[int, int]:

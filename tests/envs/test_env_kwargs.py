@@ -74,3 +74,76 @@ def test_an_env_that_cannot_be_made_is_one_line_naming_the_task(entry_point, nee
             get_task(env_id, env_kwargs={"x": 1})
     finally:
         del gymnasium.registry[env_id]
+
+
+class _Env:
+    """A tiny Gymnasium env whose reset/step can be made wrong, one way at a time."""
+
+    def __init__(self, how="ok", **kwargs):
+        import gymnasium
+        import numpy as np
+
+        self.how = how
+        self.observation_space = gymnasium.spaces.Box(-1.0, 1.0, (3,), np.float64)
+        self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+    def reset(self, seed=None, options=None):
+        import numpy as np
+
+        return np.zeros(2 if self.how == "reset-shape" else 3), {}
+
+    def step(self, action):
+        import numpy as np
+
+        if self.how == "step-four":
+            return np.zeros(3), 0.0, False, {}
+        if self.how == "step-raises":
+            raise RuntimeError("boom")
+        return np.zeros(3), float("nan") if self.how == "nan-reward" else 0.0, False, False, {}
+
+    def close(self):
+        pass
+
+
+def _env(how):
+    import gymnasium
+
+    class Env(_Env, gymnasium.Env):
+        pass
+
+    return Env(how)
+
+
+@pytest.mark.parametrize(
+    ("how", "needle"),
+    [
+        ("reset-shape", r"reset\(\) returned an observation of 2 numbers, but its observation space has 3"),
+        ("step-four", r"step\(\) returned .*not Gymnasium's \(obs, reward"),
+        ("step-raises", r"fails when reset and stepped once \(RuntimeError: boom\)"),
+        ("nan-reward", r"step\(\) returned the reward nan"),
+    ],
+)  # fmt: skip
+def test_an_env_that_breaks_gymnasiums_contract_is_one_line_before_training(how, needle):
+    # issue 61 §6: a wrong observation shape or a bad step return were tracebacks from inside
+    # adarl after the run folder was written; the env is now reset and stepped once when probed
+    import gymnasium
+
+    from adarl.envs.tasks import get_task
+
+    env_id = "adarltest/Contract-v0"
+    gymnasium.register(env_id, entry_point=lambda **kw: _env(how))
+    try:
+        with pytest.raises(UsageError, match=f"task '{env_id}': .*" + needle if "fails" not in needle else needle):  # fmt: skip
+            get_task(env_id, env_kwargs={"x": 1})
+    finally:
+        del gymnasium.registry[env_id]
+    gymnasium.register(env_id, entry_point=lambda **kw: _env("ok"))
+    try:
+        assert get_task(env_id, env_kwargs={"x": 2}).obs_dim == 3
+    finally:
+        del gymnasium.registry[env_id]
+
+
+def test_render_mode_in_env_kwargs_is_refused():
+    with pytest.raises(UsageError, match="adarl renders only in `adarl play`"):
+        parse_env_kwargs("render_mode=human")
