@@ -208,13 +208,14 @@ def _seeds(seeds) -> str:
 
 
 def _path(run) -> Path:
-    """A run's folder, from a `Run` or a path."""
-    return run.path if isinstance(run, Run) else Path(run)
+    """A run's folder, from a `Run` (anything with a `path`: a Run of a reloaded module too) or
+    a path."""
+    return Path(run) if isinstance(run, str | Path) else Path(getattr(run, "path", run))
 
 
 def _paths(runs) -> list[str]:
     """Run folders from a `Run`, a path, or a sequence of them."""
-    if isinstance(runs, Run | str | Path):
+    if isinstance(runs, str | Path) or hasattr(runs, "path"):
         runs = [runs]
     return [str(_path(r)) for r in runs]
 

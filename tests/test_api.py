@@ -85,9 +85,11 @@ def test_every_function_that_takes_a_run_takes_the_run_train_returned(tmp_path, 
 
     seen = []
     monkeypatch.setattr(api, "_cli", lambda command, positional, options: seen.append(positional) or 0)  # fmt: skip
-    adarl.evaluate(run)
-    adarl.evaluate([run, str(path)])
-    adarl.report(run, out=tmp_path / "r")
+    api.evaluate(run)
+    api.evaluate([run, str(path)])
+    # api.report: `adarl.report` is shadowed by the subpackage adarl.report once that is
+    # imported in the process (issue 63's rename is still to come)
+    api.report(run, out=tmp_path / "r")
     assert seen == [[str(path)], [str(path), str(path)], [str(path)]]
 
 

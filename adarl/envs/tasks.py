@@ -540,6 +540,39 @@ def registered_time_limit(task: str, env_module: str = "", env_kwargs="") -> int
     return get_task(task, env_kwargs=env_kwargs or "", env_module=env_module).max_episode_steps
 
 
+def model_identity(spec: TaskSpec) -> dict | None:
+    """What model a Gymnasium MuJoCo task is: its XML's resolved path and the SHA-256 of its
+    bytes (recorded in a run's environment.json, `model`); None for a task without an XML of its
+    own (the paper's four build theirs from adarl's code). Meshes and other assets the XML
+    includes are not hashed."""
+    if spec.kind != "mujoco" or not spec.xml_path:
+        return None
+    import hashlib
+
+    path = os.path.realpath(spec.xml_path)
+    with open(path, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()
+    return {"xml": path, "sha256": digest}
+
+
+def check_model(spec: TaskSpec, recorded, where: str, what: str) -> None:
+    """A one-line UsageError if `recorded` (a run's `model`) is not `spec`'s model now: `what`
+    (resuming, evaluating) would run on another model than the run trained on (issue 61 §3: a
+    relative xml_file from another folder, or the file edited since). Runs without a record
+    are not checked."""
+    if not isinstance(recorded, dict) or "sha256" not in recorded:
+        return
+    now = model_identity(spec)
+    if now is None or now == {"xml": recorded.get("xml"), "sha256": recorded["sha256"]}:
+        return
+    raise UsageError(
+        f"{where} was trained on the model {recorded.get('xml')} (sha256 "
+        f"{str(recorded['sha256'])[:12]}), but {what} it here would use {now['xml']} (sha256 "
+        f"{now['sha256'][:12]}); allowed: run from the folder it trained in, or put its model "
+        "back as it was (or start a new run)"
+    )
+
+
 def task_of(config) -> TaskSpec:
     """The `TaskSpec` of a run's config (a config dataclass or its config.yaml dict)."""
     if not isinstance(config, dict):

@@ -96,10 +96,17 @@ def run_task(run: Run):
     """The `TaskSpec` a run trained on, made as its config says (`env_kwargs`, `env_module`,
     `model_version`: `adarl.envs.tasks.task_of`); an env-module the user did not name is a
     one-line `UsageError` naming the run (`adarl.envs.tasks.check_named`)."""
-    from adarl.envs.tasks import task_of
+    from adarl.envs.tasks import check_model, task_of
+    from adarl.runs.provenance import read_environment
 
     check_run_module(run)
-    return task_of(run.config)
+    spec = task_of(run.config)
+    try:
+        record = read_environment(run.path) or {}
+    except UsageError:
+        record = {}
+    check_model(spec, record.get("model"), f"run {run.path}", "evaluating")
+    return spec
 
 
 def check_run_module(run: Run) -> None:

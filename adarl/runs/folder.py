@@ -255,13 +255,15 @@ def check_resume_dir(run_dir: str | os.PathLike) -> None:
         raise UsageError(f"run folder {run_dir} is not writable ({why})")
 
 
-def start_new(run_dir: Path, lock: RunLock, config, algo: str, command: str) -> None:
+def start_new(
+    run_dir: Path, lock: RunLock, config, algo: str, command: str, extra: dict | None = None
+) -> None:
     """Create a new run: refuse a non-empty folder (one-line UsageError, nothing written), take
-    the lock, write config.yaml and environment.json."""
+    the lock, write config.yaml and environment.json (with `extra`, e.g. the task's `model`)."""
     check_new_run_dir(run_dir)
     lock.acquire(new=True)
     write_config(run_dir, config, algo, command)
-    write_environment(run_dir)
+    write_environment(run_dir, extra)
 
 
 def lock_to_resume(run_dir: Path, lock: RunLock) -> bool:

@@ -165,3 +165,26 @@ def check_logged_physics(run_dir: str | os.PathLike, task: str, dynamics: str) -
                 f"{dynamics!r} holds it fixed in this adarl: the run was trained under an older "
                 "reading of its spec; resume it with the adarl it started on, or start a new run"
             )
+
+
+def model_record(config) -> dict:
+    """environment.json's `model` for a new run of `config` (`adarl.envs.tasks.model_identity`;
+    nothing for a task without an XML of its own)."""
+    from adarl.envs.tasks import model_identity, task_of
+
+    identity = model_identity(task_of(config)) if getattr(config, "task", None) else None
+    return {"model": identity} if identity else {}
+
+
+def check_run_model(run_dir: str | os.PathLike, config) -> None:
+    """On resume: a one-line UsageError if the run's model (environment.json `model`) is not the
+    one its config resolves to here (`adarl.envs.tasks.check_model`)."""
+    from adarl.envs.tasks import check_model, task_of
+    from adarl.runs.provenance import read_environment
+
+    try:
+        record = read_environment(run_dir) or {}
+    except UsageError:
+        return  # a damaged record is provenance's to report
+    if getattr(config, "task", None) and record.get("model"):
+        check_model(task_of(config), record["model"], f"run {run_dir}", "resuming")

@@ -34,7 +34,7 @@ from adarl.errors import Stopped, UsageError
 from adarl.files import atomic_write_bytes
 from adarl.runs import checkpoints, folder, layout, logs, provenance
 from adarl.runs.lock import RunLock
-from adarl.train.guards import DivergenceWatch, check_logged_physics
+from adarl.train.guards import DivergenceWatch, check_logged_physics, check_run_model, model_record
 from adarl.train.learner import Episode, Event, Learner, Truncation, due
 
 LOGS = (layout.EPISODES_CSV, layout.TRAIN_CSV, layout.EVAL_CSV)
@@ -114,6 +114,7 @@ def train(
             loop = Loop(make_learner(config), run_dir, progress)
             if getattr(config, "dynamics", None) and getattr(config, "task", None):
                 check_logged_physics(run_dir, config.task, config.dynamics)
+            check_run_model(run_dir, config)
             path, arrays, meta = folder.newest_to_resume(run_dir, config)
             if meta is None:  # killed before its first checkpoint: start again, nothing half-done
                 loop.learner.fresh()
@@ -125,7 +126,7 @@ def train(
         else:
             folder.check_new_run_dir(run_dir)
             learner = make_learner(config)  # unknown tasks or dynamics fail before any write
-            folder.start_new(run_dir, lock, config, learner.algo, command)
+            folder.start_new(run_dir, lock, config, learner.algo, command, model_record(config))
             loop = Loop(learner, run_dir, progress)
             learner.fresh()
             loop.open_logs(None)

@@ -100,7 +100,7 @@ def test_a_trainer_that_fails_leaves_its_run_folder_unlocked(algo, tmp_path, mon
     (and so the trainer's frames) alive, as a sweep worker or a test does."""
     from adarl.train.trainers import trainer
 
-    def crash(run_dir):
+    def crash(run_dir, extra=None):
         assert lock_holder(run_dir) == str(os.getpid())  # taken by then
         raise Crash
 
