@@ -108,6 +108,8 @@ def address_default(xml_path: str, name: str) -> float:
     i = element.id
     if a.kind == "body":
         return float(model.body_mass[i])
+    if a.kind == "geom" and a.attr == "size":
+        _check_size_component(model, i, name, a.index)
     if a.kind == "geom":
         return float((model.geom_friction if a.attr == "friction" else model.geom_size)[i, a.index])
     if a.kind == "joint":
@@ -120,6 +122,26 @@ def address_default(xml_path: str, name: str) -> float:
         }
         return float(field[a.attr])
     return float(model.actuator_gear[i, 0])
+
+
+#: how many size components each geom type's physics uses (MuJoCo's geom `size`): a plane is
+#: infinite, and a mesh's or height field's size comes from its asset
+_SIZE_COMPONENTS = {"sphere": 1, "capsule": 2, "cylinder": 2, "ellipsoid": 3, "box": 3}
+
+
+def _check_size_component(model, geom_id: int, name: str, index: int) -> None:
+    """A one-line `UsageError` if geom `geom_id`'s type does not use size component `index`:
+    the edit would be accepted and change nothing (issue 61 §5: a capsule's size[2])."""
+    import mujoco
+
+    kind = mujoco.mjtGeom(int(model.geom_type[geom_id])).name.removeprefix("mjGEOM_").lower()
+    used = _SIZE_COMPONENTS.get(kind, 0)
+    if index >= used:
+        allowed = f"size[0]..size[{used - 1}]" if used > 1 else ("size[0]" if used else "none")
+        raise UsageError(
+            f"{name}: a {kind}'s physics does not use size[{index}], so setting it would change "
+            f"nothing; allowed for a {kind}: {allowed}"
+        )
 
 
 def _by_name_or_joint(model, a: Address):

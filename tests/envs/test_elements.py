@@ -89,3 +89,20 @@ def test_any_out_of_range_index_is_a_one_line_error(dynamics):
     with pytest.raises(UsageError, match=r"bad index \[\d\]") as info:
         make("HalfCheetah-v5", dynamics, seed=0)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("address", "needle"),
+    [
+        ("geom:torso.size[2]", "a capsule's physics does not use size\\[2\\]"),  # HalfCheetah's torso
+        ("geom:floor.size[0]", "a plane's physics does not use size\\[0\\]"),
+    ],
+)  # fmt: skip
+def test_a_size_component_the_geom_type_does_not_use_is_refused(address, needle):
+    # issue 61 §5: geom:torso.size[2] on a capsule was accepted and changed nothing
+    from adarl.envs.dynamics import parse_dynamics
+    from adarl.errors import UsageError
+
+    with pytest.raises(UsageError, match=needle):
+        parse_dynamics(f"fixed:{address}=0.1", "HalfCheetah-v5")
+    parse_dynamics("fixed:geom:torso.size[0]=0.05", "HalfCheetah-v5")  # a radius: used
