@@ -305,17 +305,23 @@ def _json(task, detail: bool) -> dict:
 
 def _adarl_budget(task: str) -> str:
     """AdaRL's default budget on the task and how many truncations it makes."""
-    from adarl.algos import registry, schedule
+    from adarl.algos import registry, sac_config, schedule
+    from adarl.algos.config import follows_budget
 
     adarl = registry.get("adarl")
     budget = dict(adarl.task_defaults.get(task, adarl.task_defaults.get(registry.OTHER_TASKS, {})))
     config = adarl.config_class(**adarl.defaults, task=task, **budget)
     budget.setdefault("total_steps", config.total_steps)
     budget.setdefault("truncate_every", config.truncate_every)
-    return (
+    line = (
         f"adarl default budget: {budget['total_steps']:,} steps, d_t = "
         f"{budget['truncate_every']:,} gradient steps ({schedule.n_truncations(config)} truncations)"
     )
+    rules = sac_config.budget_rules("adarl") if follows_budget(task) else {}
+    if rules:  # outside the paper's four: the fields that follow --total-steps (issue 62)
+        said = "; ".join(f"{field} = {rule.text}" for field, rule in rules.items())
+        line += f"; with another --total-steps, unless given: {said}"
+    return line
 
 
 def _masses(task: str) -> dict[str, dict[str, float]]:

@@ -268,8 +268,15 @@ def test_tasks_shows_the_adarl_default_budget(capsys):
     assert main(["tasks", "walker2d"]) == 0
     out = capsys.readouterr().out
     assert (
-        "adarl default budget: 3,000,000 steps, d_t = 700,000 gradient steps (4 truncations)" in out
-    )
+        "adarl default budget: 3,000,000 steps, d_t = 700,000 gradient steps (4 truncations)\n"
+        in out
+    )  # the paper's tasks keep the paper's settings: no budget rule
+    assert main(["tasks", "InvertedPendulum-v5"]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "with another --total-steps, unless given: start_steps = 5% of total-steps, at most "
+        "10,000; truncate_every = total-steps / 5" in out
+    )  # issue 62: `adarl tasks` says the rule on the other tasks
 
 
 def test_report_flag_writes_the_report_and_the_summary_names_it(tmp_path, capsys, monkeypatch):
